@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Set up clbeam on a fresh Debian machine and run one task.
+#
+#   bash scripts/bootstrap.sh demo     # set up, then `clbeam demo`
+#   bash scripts/bootstrap.sh test     # set up, then the whole test suite
+#   bash scripts/bootstrap.sh bench    # set up, then `clbeam bench`
+#
+# "Set up" = install an OpenCL CPU driver (Debian's PoCL) when no OpenCL
+# platform is found, plus Oclgrind for the kernel memory checks; create the
+# virtual environment .venv; install clbeam with its test extras.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+task="${1:-test}"; shift || true
+
+need_apt=()
+if ! { [ -d /etc/OpenCL/vendors ] && ls /etc/OpenCL/vendors/*.icd >/dev/null 2>&1; }; then
+    need_apt+=(pocl-opencl-icd)
+fi
+if [ "$task" = test ] && ! command -v oclgrind >/dev/null 2>&1; then
+    need_apt+=(oclgrind)
+fi
+if [ ${#need_apt[@]} -gt 0 ]; then
+    if [ "$(id -u)" = 0 ]; then
+        echo "clbeam setup: installing ${need_apt[*]} (Debian packages)"
+        apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need_apt[@]}" >/dev/null
+    else
+        echo "clbeam setup: please install ${need_apt[*]} (sudo apt-get install ${need_apt[*]}); continuing" >&2
+    fi
+fi
+
+PY="${PYTHON:-python3}"
+if [ ! -x .venv/bin/python ]; then
+    echo "clbeam setup: creating .venv"
+    "$PY" -m venv .venv
+fi
+stamp=.venv/.clbeam-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+    echo "clbeam setup: installing clbeam and its test extras into .venv"
+    .venv/bin/python -m pip install -q --upgrade pip
+    .venv/bin/python -m pip install -q -e ".[test]"
+    touch "$stamp"
+fi
+
+case "$task" in
+    demo)  exec .venv/bin/clbeam demo "$@" ;;
+    test)  exec .venv/bin/python -m pytest "$@" ;;
+    bench) exec .venv/bin/clbeam bench "$@" ;;
+    *)     exec .venv/bin/clbeam "$task" "$@" ;;
+esac
