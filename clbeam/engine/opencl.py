@@ -1,0 +1,285 @@
+"""OpenCL backend: device choice, program build and cache, buffers, tiling.
+
+One :class:`OpenCLEngine` holds a context, a command queue, the programs it
+has built (one per combination of mode, precision, outputs and sizes, built
+once) and its device buffers (reused while they are large enough).  Calls
+are serialised by a lock, so one engine may be shared by threads; a server
+wanting parallel devices holds one engine per device.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+from importlib import resources
+
+import numpy as np
+
+from ..errors import DeviceError, GridError, OptionError, require
+from ..geometry import PolarGrid
+from .common import BeamformInput, InterpMode, Sums, baseband, carrier_phase, cell_windows, check_outputs, interp_mode
+
+log = logging.getLogger(__name__)
+
+#: work-items per work-group along angle (dimension 0); clamped to the device limit
+LOCAL_ANGLE = 16
+#: fraction of the device's global memory one tile of outputs may use
+TILE_MEMORY_FRACTION = 0.25
+
+
+def _cl():
+    try:
+        import pyopencl as cl
+    except ImportError as exc:  # pragma: no cover - pyopencl is a dependency
+        raise DeviceError(f"pyopencl is not importable ({exc}); install clbeam's dependencies") from None
+    return cl
+
+
+def list_devices() -> list:
+    """All OpenCL devices of all platforms, in platform order (empty when none)."""
+    cl = _cl()
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error:
+        return []
+    devices = []
+    for p in platforms:
+        try:
+            devices.extend(p.get_devices())
+        except cl.Error:
+            continue
+    return devices
+
+
+def device_label(dev) -> str:
+    """``"device name (platform name)"``."""
+    return f"{dev.name.strip()} ({dev.platform.name.strip()})"
+
+
+NO_OPENCL = ("no OpenCL device found; install an OpenCL driver (on Debian: apt-get install pocl-opencl-icd) "
+             "or use --backend reference")
+
+
+def choose_device(device=None):
+    """Pick an OpenCL device by index, by name substring, by ``CLBEAM_DEVICE``,
+    or the first one found."""
+    devices = list_devices()
+    require(len(devices) > 0, DeviceError, NO_OPENCL)
+    if device is None:
+        device = os.environ.get("CLBEAM_DEVICE")
+    if device is None or device == "":
+        return devices[0]
+    if isinstance(device, int) or (isinstance(device, str) and device.isdigit()):
+        i = int(device)
+        require(0 <= i < len(devices), DeviceError, f"OpenCL device index {i} out of range 0..{len(devices) - 1}")
+        return devices[i]
+    for d in devices:
+        if str(device).lower() in device_label(d).lower():
+            return d
+    raise DeviceError(f"no OpenCL device matches '{device}'; found: " + "; ".join(device_label(d) for d in devices))
+
+
+def kernel_source() -> str:
+    """The beamforming kernel with its header inlined (avoids include paths)."""
+    root = resources.files("clbeam.kernels")
+    src = (root / "beamform.cl").read_text()
+    return src.replace('#include "interp.h"', (root / "interp.h").read_text())
+
+
+def device_has_fp64(dev) -> bool:
+    """True when the device supports double precision (``cl_khr_fp64``)."""
+    return "cl_khr_fp64" in dev.extensions or dev.double_fp_config != 0
+
+
+class OpenCLEngine:
+    """Delay-and-sum on an OpenCL device (same interface as the reference).
+
+    Parameters
+    ----------
+    device : str or int, optional
+        Device index or name substring; default ``CLBEAM_DEVICE`` or the first.
+    precision : {"float32", "float64"}
+        Kernel arithmetic; float64 only on devices with ``cl_khr_fp64``.
+    max_tile_cells : int, optional
+        Cap on cells per launch (tiles over angle); default from device memory.
+    """
+
+    name = "opencl"
+
+    def __init__(self, device=None, precision: str = "float32", max_tile_cells: int | None = None):
+        cl = _cl()
+        require(precision in ("float32", "float64"), OptionError,
+                f"precision '{precision}' is unknown, expected 'float32' or 'float64'")
+        self.device = choose_device(device)
+        if precision == "float64":
+            require(device_has_fp64(self.device), DeviceError,
+                    f"{device_label(self.device)} has no double precision (cl_khr_fp64); use precision float32")
+        self.precision = precision
+        self.real = np.float64 if precision == "float64" else np.float32
+        self.ctx = cl.Context([self.device])
+        self.queue = cl.CommandQueue(self.ctx)
+        self._kernels: dict = {}
+        self._buffers: dict = {}
+        self._lock = threading.Lock()
+        self.max_tile_cells = max_tile_cells
+        log.info("OpenCL device: %s, %s", device_label(self.device), precision)
+
+    @property
+    def label(self) -> str:
+        """Device name and platform."""
+        return device_label(self.device)
+
+    def release(self) -> None:
+        """Free the device buffers (the compiled programs are kept)."""
+        with self._lock:
+            for buf in self._buffers.values():
+                buf.release()
+            self._buffers.clear()
+
+    # -- program cache ----------------------------------------------------
+    def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int):
+        key = (mode.name, tuple(sorted(outs)), n_samples, n_range)
+        k = self._kernels.get(key)
+        if k is None:
+            cl = _cl()
+            opts = [
+                f"-DREAL_T={'double' if self.precision == 'float64' else 'float'}",
+                f"-DREAL_IS_DOUBLE={int(self.precision == 'float64')}",
+                f"-DINTERP={mode.kernel_id}",
+                f"-DLANCZOS_A={max(mode.lanczos_a, 1)}",
+                f"-DBASEBAND={int(mode.baseband)}",
+                f"-DN_SAMPLES={n_samples}",
+                f"-DN_RANGE={n_range}",
+                f"-DWANT_INTENSITY={int('intensity' in outs)}",
+                f"-DWANT_CF={int('cf' in outs)}",
+                f"-DWANT_SUMS={int('sums' in outs)}",
+            ]
+            try:
+                prg = cl.Program(self.ctx, kernel_source()).build(options=opts)
+            except cl.Error as exc:
+                raise DeviceError(f"kernel build failed on {self.label}: {str(exc).splitlines()[0]}") from None
+            k = prg.beamform
+            self._kernels[key] = k
+        return k
+
+    def _buffer(self, name: str, nbytes: int):
+        cl = _cl()
+        nbytes = max(int(nbytes), 16)
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < nbytes:
+            if buf is not None:
+                buf.release()
+            try:
+                buf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, nbytes)
+            except cl.Error as exc:
+                raise DeviceError(f"cannot allocate {nbytes / 2**20:.1f} MiB on {self.label}: {exc}") from None
+            self._buffers[name] = buf
+        return buf
+
+    def _upload(self, name: str, array: np.ndarray):
+        cl = _cl()
+        a = np.ascontiguousarray(array)
+        buf = self._buffer(name, a.nbytes)
+        cl.enqueue_copy(self.queue, buf, a)
+        return buf
+
+    def _tile_angles(self, grid: PolarGrid, bytes_per_cell: int) -> int:
+        n_a, n_r = grid.shape
+        if self.max_tile_cells is not None:
+            cells = self.max_tile_cells
+        else:
+            limit = min(self.device.max_mem_alloc_size, TILE_MEMORY_FRACTION * self.device.global_mem_size)
+            cells = int(limit // max(bytes_per_cell, 1))
+        rows = max(1, min(n_a, cells // n_r))
+        require(cells >= n_r, GridError,
+                f"one angle row of {n_r} ranges does not fit the device memory of {self.label}; use fewer ranges")
+        return rows
+
+    # -- imaging ----------------------------------------------------------
+    def beamform(self, inp: BeamformInput, grid: PolarGrid, *, interp: str = "linear",
+                 outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None) -> Sums:
+        """Image one ping on the device (see :meth:`ReferenceEngine.beamform`)."""
+        mode = interp_mode(interp)
+        require(mode.kernel_id >= 0, OptionError,
+                f"interpolation mode '{mode.name}' exists in the reference backend only")
+        outs = check_outputs(outputs)
+        with self._lock:
+            return self._beamform(inp, grid, mode, outs, range_window_m)
+
+    def _beamform(self, inp, grid, mode, outs, range_window_m) -> Sums:
+        cl = _cl()
+        real = self.real
+        n_a, n_r = grid.shape
+        n_chan, n_samp = inp.n_channels, inp.n_samples
+        data = np.asarray(inp.data)
+        if mode.baseband:
+            data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
+        inter = np.empty((n_chan, n_samp, 2), dtype=real)
+        inter[..., 0] = data.real
+        inter[..., 1] = data.imag
+
+        o = np.asarray(inp.element_offsets_m, dtype=np.float64)
+        chan = np.zeros((n_chan, 4), dtype=real)
+        chan[:, 0], chan[:, 1], chan[:, 2] = o[:, 1], o[:, 2], np.sum(o * o, axis=1)
+        so = np.asarray(inp.source_offset_m, dtype=np.float64)
+
+        th = np.deg2rad(grid.angles_deg)
+        angle_tab = np.stack([np.sin(th), np.cos(th)], axis=1).astype(real)
+        base = (2.0 * grid.ranges_m / inp.sound_speed_m_s - inp.t0_s) * inp.sample_rate_hz
+        base_int = np.floor(base)
+        require(bool(np.all(np.abs(base_int) < 2**31 - 2**20)), GridError,
+                "grid ranges reach beyond 2^31 samples of the record; reduce the maximum range")
+        base_frac = (base - base_int).astype(real)
+        base_phase = carrier_phase(inp.centre_frequency_hz, inp.sample_rate_hz, base_int).astype(real)
+        window = cell_windows(inp, grid, mode, range_window_m)
+
+        kernel = self._kernel(mode, outs, n_samp, n_r)
+        b_data = self._upload("data", inter)
+        b_chan = self._upload("chan", chan)
+        b_range = self._upload("range", grid.ranges_m.astype(real))
+        b_bint = self._upload("base_int", base_int.astype(np.int32))
+        b_bfrac = self._upload("base_frac", base_frac)
+        b_bphase = self._upload("base_phase", base_phase)
+
+        itemsize = np.dtype(real).itemsize
+        per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + 3 * ("sums" in outs)) + 4 * ("sums" in outs))
+        rows = self._tile_angles(grid, per_cell)
+        res = Sums()
+        full = {}
+        if "intensity" in outs:
+            full["intensity"] = res.intensity = np.empty((n_a, n_r), dtype=real)
+        if "cf" in outs:
+            full["cf"] = res.cf = np.empty((n_a, n_r), dtype=real)
+        if "sums" in outs:
+            full["s"] = np.empty((n_a, n_r, 2), dtype=real)
+            full["q"] = res.q = np.empty((n_a, n_r), dtype=real)
+            full["m"] = res.m = np.empty((n_a, n_r), dtype=np.int32)
+        tile_cells = rows * n_r
+        bufs = {
+            "intensity": self._buffer("out_intensity", tile_cells * itemsize if "intensity" in outs else 16),
+            "cf": self._buffer("out_cf", tile_cells * itemsize if "cf" in outs else 16),
+            "s": self._buffer("out_s", 2 * tile_cells * itemsize if "sums" in outs else 16),
+            "q": self._buffer("out_q", tile_cells * itemsize if "sums" in outs else 16),
+            "m": self._buffer("out_m", tile_cells * 4 if "sums" in outs else 16),
+        }
+        wg_max = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device)
+        local_a = max(1, min(LOCAL_ANGLE, wg_max))
+        for a0 in range(0, n_a, rows):
+            na = min(rows, n_a - a0)
+            b_angle = self._upload("angle", angle_tab[a0:a0 + na])
+            b_win = self._upload("window", window[a0:a0 + na])
+            gsize = (-(-na // local_a) * local_a, n_r)
+            kernel(self.queue, gsize, (local_a, 1),
+                   b_data, b_chan, np.int32(n_chan), b_angle, b_win, np.int32(na),
+                   b_range, b_bint, b_bfrac, b_bphase,
+                   real(so[1]), real(so[2]), real(np.dot(so, so)),
+                   real(inp.samples_per_m),
+                   real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
+                   bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"])
+            for name, arr in full.items():
+                cl.enqueue_copy(self.queue, arr[a0:a0 + na], bufs[name], is_blocking=False)
+        self.queue.finish()
+        if "sums" in outs:
+            res.s = full["s"][..., 0] + 1j * full["s"][..., 1]
+        return res

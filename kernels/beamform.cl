@@ -1,0 +1,114 @@
+/* Spherical-wave delay-and-sum on a polar grid: coherent and incoherent sums
+ * giving intensity and coherence factor (Holland et al. 2024, eqs. 1-2).
+ *
+ * One work-item per cell (angle ia, range ir); dimension 0 runs over angle so
+ * that neighbouring work-items read neighbouring samples.
+ *
+ * Compile-time macros (-D):
+ *   REAL_T          float or double (double needs cl_khr_fp64)
+ *   INTERP, LANCZOS_A   interpolation mode (see interp.h)
+ *   BASEBAND        1: data are basebanded by the carrier; the kernel restores
+ *                   the carrier phase after interpolation
+ *   N_SAMPLES, N_RANGE  record length and range cells
+ *   WANT_INTENSITY, WANT_CF, WANT_SUMS   which outputs are written
+ *
+ * Travel time in samples of cell r for channel n, with every position an
+ * offset o from the grid centre and u the unit vector of the cell's angle:
+ *   pos = base(ir) + (d(o_src) + d(o_n)) * fs / c,
+ *   base(ir) = (2 R - c t0) fs / c   (float64 on the host, split into an
+ *              integer and a fraction so float32 keeps sub-sample precision
+ *              at kilometre ranges),
+ *   d(o) = |R u - o| - R = (|o|^2 - 2 R u.o) / (|R u - o| + R)
+ * which has no cancellation at any range.
+ */
+#if REAL_IS_DOUBLE
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#endif
+typedef REAL_T real_t;
+
+#include "interp.h"
+
+inline real_t offset_delay_m(real_t R, real_t u_dot_o, real_t q)
+{
+    real_t num = q - (real_t)2 * R * u_dot_o;
+    real_t den = sqrt(fmax(R * R - (real_t)2 * R * u_dot_o + q, (real_t)0)) + R;
+    return den > (real_t)0 ? num / den : (real_t)0;
+}
+
+__kernel void beamform(
+    __global const real_t *restrict data,      /* [n_chan][N_SAMPLES][2] */
+    __global const real_t *restrict chan,      /* [n_chan][4]: o_y, o_z, |o|^2, 0 (m, m, m^2) */
+    const int n_chan,
+    __global const real_t *restrict angle_tab, /* [n_angle][2]: sin, cos */
+    __global const int *restrict window,       /* [n_angle][2]: first, end range index computed */
+    const int n_angle,
+    __global const real_t *restrict range_m,   /* [N_RANGE] */
+    __global const int *restrict base_int,     /* [N_RANGE] */
+    __global const real_t *restrict base_frac, /* [N_RANGE] */
+    __global const real_t *restrict base_phase,/* [N_RANGE] carrier phase of base_int (rad), BASEBAND */
+    const real_t src_oy, const real_t src_oz, const real_t src_q,
+    const real_t samples_per_m,                /* fs / c */
+    const real_t carrier_rad_per_sample,       /* 2 pi fc / fs, BASEBAND */
+    __global real_t *restrict out_intensity,   /* [n_angle][N_RANGE] */
+    __global real_t *restrict out_cf,
+    __global real_t *restrict out_s,           /* [n_angle][N_RANGE][2] */
+    __global real_t *restrict out_q,
+    __global int *restrict out_m)
+{
+    const int ia = get_global_id(0);
+    const int ir = get_global_id(1);
+    if (ia >= n_angle || ir >= N_RANGE)
+        return;
+    const size_t cell = (size_t)ia * N_RANGE + ir;
+
+    real_t sr = 0, si = 0, q = 0;
+    int m = 0;
+    if (ir >= window[2 * ia] && ir < window[2 * ia + 1]) {
+        const real_t sn = angle_tab[2 * ia], cs = angle_tab[2 * ia + 1];
+        const real_t R = range_m[ir];
+        const int k0 = base_int[ir];
+        const real_t frac0 = base_frac[ir]
+            + offset_delay_m(R, sn * src_oy + cs * src_oz, src_q) * samples_per_m;
+#if BASEBAND
+        const real_t phase0 = base_phase[ir];
+#endif
+        for (int n = 0; n < n_chan; ++n) {
+            const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2];
+            const real_t pos = frac0 + offset_delay_m(R, sn * oy + cs * oz, oq) * samples_per_m;
+            real_t t;
+            const int k = k0 + split_position(pos, &t);
+            if (k - TAPS_BEFORE < 0 || k + TAPS_AFTER >= N_SAMPLES)
+                continue;
+            real_t re, im;
+            interpolate(data + (size_t)n * (2 * N_SAMPLES), k, t, &re, &im);
+#if BASEBAND
+            {
+                real_t c;
+                const real_t s = sincos(phase0 + carrier_rad_per_sample * pos, &c);
+                const real_t r2 = re * c - im * s;
+                im = re * s + im * c;
+                re = r2;
+            }
+#endif
+            if (!(isfinite(re) && isfinite(im)))
+                continue;
+            sr += re;
+            si += im;
+            q += re * re + im * im;
+            m += 1;
+        }
+    }
+    const real_t inten = sr * sr + si * si;
+#if WANT_INTENSITY
+    out_intensity[cell] = inten;
+#endif
+#if WANT_CF
+    out_cf[cell] = (m > 0 && q > (real_t)0) ? inten / ((real_t)m * q) : (real_t)0;
+#endif
+#if WANT_SUMS
+    out_s[2 * cell] = sr;
+    out_s[2 * cell + 1] = si;
+    out_q[cell] = q;
+    out_m[cell] = m;
+#endif
+}
