@@ -1,3 +1,217 @@
-"""The ``clbeam`` command (placeholder until the subcommands land)."""
-def main(argv=None):
+"""The ``clbeam`` command line (SPEC §8): parse, call the library, report.
+
+Every subcommand has ``--help``; bad input ends in one line on stderr and a
+non-zero exit (2); long work shows a progress bar on a terminal (``--quiet``
+turns it off).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+
+from . import __version__
+from .errors import ClbeamError
+
+log = logging.getLogger("clbeam")
+
+EXIT_BAD_INPUT = 2
+
+
+def progress(iterable, *, total=None, desc="", quiet=False, unit="ping"):
+    """A tqdm progress bar on a terminal, nothing otherwise or with ``quiet``."""
+    from tqdm import tqdm
+
+    return tqdm(iterable, total=total, desc=desc, unit=unit, disable=quiet or not sys.stderr.isatty(),
+                dynamic_ncols=True, leave=False)
+
+
+# -- shared option groups ----------------------------------------------------
+def add_grid_options(p: argparse.ArgumentParser) -> None:
+    """Grid options of SPEC §8."""
+    g = p.add_argument_group("grid")
+    g.add_argument("--range-res", type=float, default=0.2, metavar="M", help="range step (m, default 0.2)")
+    g.add_argument("--angle-res", type=float, default=0.1, metavar="DEG", help="angle step (degree, default 0.1)")
+    g.add_argument("--max-range", type=float, default=None, metavar="M",
+                   help="largest range (m, default: the end of the record)")
+    g.add_argument("--min-range", type=float, default=0.0, metavar="M", help="smallest range (m, default 0)")
+    g.add_argument("--angles", type=float, nargs=2, default=(-80.0, 80.0), metavar=("MIN", "MAX"),
+                   help="angle window from nadir (degree, starboard positive, default -80 80)")
+
+
+def add_engine_options(p: argparse.ArgumentParser) -> None:
+    """Mode, outputs, backend and device options."""
+    from .engine import INTERP_MODES
+
+    g = p.add_argument_group("imaging")
+    g.add_argument("--interp", default="linear", choices=[m for m in INTERP_MODES],
+                   help="interpolation mode (default linear); 'exact' runs on the reference backend only")
+    g.add_argument("--upsample", type=int, default=1, metavar="N", help="FFT upsampling of the analytic signal (default 1)")
+    g.add_argument("--outputs", default="intensity,cf", metavar="LIST",
+                   help="comma-separated outputs: intensity, cf, sums (default intensity,cf)")
+    g.add_argument("--backend", default="opencl", choices=["opencl", "reference"], help="imaging engine (default opencl)")
+    g.add_argument("--device", default=None, help="OpenCL device: index or name substring (default: CLBEAM_DEVICE or the first)")
+    g.add_argument("--precision", default="float32", choices=["float32", "float64"], help="kernel arithmetic (default float32)")
+    g.add_argument("--sound-speed", type=float, default=None, metavar="M/S", help="override the file's sound speed (m/s)")
+    g.add_argument("--threshold", type=float, default=0.25, help="coherence-peak threshold on smoothed CF (default 0.25)")
+
+
+def options_from_args(args):
+    """:class:`~clbeam.imager.ImagingOptions` from parsed arguments."""
+    from .imager import ImagingOptions
+
+    outputs = tuple(s.strip() for s in args.outputs.split(",") if s.strip())
+    return ImagingOptions(interp=args.interp, upsample=args.upsample, outputs=outputs, threshold=args.threshold,
+                          sound_speed_m_s=args.sound_speed, precision=args.precision)
+
+
+def grid_from_args(args, max_range_default: float):
+    """:class:`~clbeam.geometry.PolarGrid` from parsed arguments."""
+    from .geometry import PolarGrid
+
+    return PolarGrid.regular(range_res_m=args.range_res, angle_res_deg=args.angle_res,
+                             max_range_m=args.max_range if args.max_range is not None else max_range_default,
+                             min_range_m=args.min_range, angles_deg=tuple(args.angles))
+
+
+# -- subcommands -------------------------------------------------------------
+def cmd_devices(args) -> int:
+    from .engine.opencl import device_has_fp64, list_devices
+
+    devices = list_devices()
+    if not devices:
+        print("no OpenCL device found; install an OpenCL driver (Debian: apt-get install pocl-opencl-icd) "
+              "or use --backend reference")
+        return 1
+    for i, d in enumerate(devices):
+        print(f"[{i}] {d.name.strip()}  platform: {d.platform.name.strip()}  "
+              f"compute units: {d.max_compute_units}  memory: {d.global_mem_size / 2**30:.1f} GiB  "
+              f"max alloc: {d.max_mem_alloc_size / 2**30:.1f} GiB  fp64: {'yes' if device_has_fp64(d) else 'no'}")
     return 0
+
+
+def cmd_image(args) -> int:
+    from .imager import Imager
+    from .io import ImageWriter, write_peaks_csv
+    from .ping import PingFile
+
+    opts = options_from_args(args)
+    with PingFile(args.pings) as pings:
+        grid = grid_from_args(args, pings.max_record_range_m())
+        imager = Imager(grid, opts, backend=args.backend, device=args.device)
+        variables = list(opts.outputs)
+        if "cf" in variables:
+            variables.append("cf_smooth")
+        if "sums" in variables:
+            variables += ["s_r", "s_i", "q", "m"]
+        attrs = {"interp": opts.interp, "upsample": opts.upsample, "backend": args.backend,
+                 "source_file": Path(args.pings).name, "clbeam_version": __version__}
+        peaks = []
+        t0 = time.perf_counter()
+        with ImageWriter(args.output, grid, len(pings), variables, attrs) as writer:
+            for ping in progress(pings, total=len(pings), desc="imaging", quiet=args.quiet):
+                img = imager.image(ping)
+                writer.write(ping.index, img, latitude=ping.latitude_deg, longitude=ping.longitude_deg,
+                             heading=ping.heading_deg)
+                peaks.extend(img.peaks)
+        if args.peaks:
+            write_peaks_csv(peaks, args.peaks)
+    dt = time.perf_counter() - t0
+    if not args.quiet:
+        print(f"imaged {len(pings)} ping(s) on a {grid.shape[0]} x {grid.shape[1]} grid in {dt:.1f} s "
+              f"({dt / max(len(pings), 1):.2f} s/ping) -> {args.output}" + (f"; {len(peaks)} peaks -> {args.peaks}" if args.peaks else ""))
+    return 0
+
+
+def cmd_peaks(args) -> int:
+    from .io import open_images, write_peaks_csv
+    from .postprocess import peaks_from_images
+
+    ds = open_images(args.images)
+    try:
+        rows = peaks_from_images(ds, args.threshold)
+    finally:
+        ds.close()
+    write_peaks_csv(rows, args.output)
+    if not args.quiet:
+        print(f"{len(rows)} coherence peak(s) above {args.threshold:g} -> {args.output}")
+    return 0
+
+
+# -- parser ------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    """The ``clbeam`` argument parser with every subcommand."""
+    p = argparse.ArgumentParser(prog="clbeam", description="Cross-track imaging of multibeam sub-bottom sonar element data.")
+    p.add_argument("--version", action="version", version=f"clbeam {__version__}")
+    p.add_argument("--debug", action="store_true", help="show full tracebacks and debug logging")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    def common(sp):
+        sp.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+
+    sp = sub.add_parser("devices", help="list the OpenCL platforms and devices found")
+    sp.set_defaults(func=cmd_devices)
+
+    sp = sub.add_parser("image", help="image a ping file into intensity and coherence factor")
+    sp.add_argument("pings", metavar="PINGS.nc", help="ping file (NetCDF4 or Zarr, SPEC §7)")
+    sp.add_argument("-o", "--output", required=True, metavar="IMAGES.nc", help="image file to write (.nc or .zarr)")
+    sp.add_argument("--peaks", metavar="PEAKS.csv", help="also write the coherence peaks")
+    add_grid_options(sp)
+    add_engine_options(sp)
+    common(sp)
+    sp.set_defaults(func=cmd_image)
+
+    sp = sub.add_parser("peaks", help="coherence peaks of an image file")
+    sp.add_argument("images", metavar="IMAGES.nc", help="image file written by 'clbeam image'")
+    sp.add_argument("-o", "--output", required=True, metavar="PEAKS.csv", help="CSV file to write")
+    sp.add_argument("--threshold", type=float, default=0.25, help="threshold on smoothed CF (default 0.25)")
+    common(sp)
+    sp.set_defaults(func=cmd_peaks)
+
+    for register in _plugins():
+        register(sub, common)
+    return p
+
+
+def _plugins():
+    """Subcommands defined beside their modules (simulate, demo, forward …)."""
+    from . import commands
+
+    return commands.REGISTRARS
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``clbeam`` command; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
+                        format="clbeam: %(levelname)s: %(message)s")
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    try:
+        return int(args.func(args) or 0)
+    except ClbeamError as exc:
+        print(f"clbeam: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("clbeam: interrupted", file=sys.stderr)
+        return 130
+    except (OSError, MemoryError) as exc:
+        if args.debug:
+            raise
+        print(f"clbeam: error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:  # a bug: one line, the traceback with --debug
+        if args.debug:
+            raise
+        print(f"clbeam: internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)",
+              file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -321,6 +321,11 @@ class PingFile:
                    f"pulse band {f0:g}-{f1:g} Hz must lie within 0-{nyq:g} Hz (half the sample rate)")
         return Pulse(f0_hz=f0, f1_hz=f1, duration_s=dur)
 
+    def max_record_range_m(self) -> float:
+        """Largest one-way range (m) any ping's record reaches: ``c (t0 + n / fs) / 2``."""
+        t_end = float(np.max(self._t0)) + self.n_samples / self.sample_rate_hz
+        return 0.5 * float(np.max(self._c)) * t_end
+
     # -- reading ------------------------------------------------------------
     def _samples(self, i: int) -> np.ndarray:
         ds = self.ds

@@ -81,11 +81,14 @@ inline void interpolate(__global const real_t *restrict ch, int k, real_t t,
         real_t s_pt = sinpi(t);
         real_t cb = cospi((real_t)1 / LANCZOS_A), sb = sinpi((real_t)1 / LANCZOS_A);
         /* start at m = -(A-1): x = t + A - 1 */
-        real_t x = t + (real_t)(LANCZOS_A - 1);
-        real_t s_a = sinpi(x / LANCZOS_A), c_a = cospi(x / LANCZOS_A);
+        const real_t x0 = t + (real_t)(LANCZOS_A - 1);
+        real_t s_a = sinpi(x0 / LANCZOS_A), c_a = cospi(x0 / LANCZOS_A);
         real_t sign = ((LANCZOS_A - 1) & 1) ? (real_t)-1 : (real_t)1;
         __global const real_t *p = ch + 2 * (k - (LANCZOS_A - 1));
         for (int m = 0; m < 2 * LANCZOS_A; ++m) {
+            /* x from t directly (not by repeated subtraction): the central
+             * taps then get x = t and t - 1 exactly */
+            const real_t x = t + (real_t)(LANCZOS_A - 1 - m);
             /* the recurrence's absolute error would dominate the small
              * sin(pi x / A) of the two central taps (|x| < 1): direct there */
             const real_t s_x = (m == LANCZOS_A - 1 || m == LANCZOS_A) ? sinpi(x / LANCZOS_A) : s_a;
@@ -97,7 +100,6 @@ inline void interpolate(__global const real_t *restrict ch, int k, real_t t,
             c_a = c_a * cb + s_a * sb;
             s_a = s_n;
             sign = -sign;
-            x -= (real_t)1;
         }
     }
     *re = sr;

@@ -74,8 +74,9 @@ def interpolate(channel: np.ndarray, pos: np.ndarray, mode: InterpMode) -> np.nd
     k = np.where(inside, k, mode.taps_before).astype(np.int64)
     offsets, w = tap_weights(mode, t)
     val = np.zeros(pos.shape, dtype=np.complex128)
-    for j, m in enumerate(offsets):
-        val += w[j] * channel[k + m]
+    with np.errstate(invalid="ignore", over="ignore"):  # non-finite samples give NaN, skipped below
+        for j, m in enumerate(offsets):
+            val += w[j] * channel[k + m]
     val[~inside] = np.nan
     return val
 

@@ -1,0 +1,260 @@
+"""The Imager: one ping through the whole chain.
+
+compress (analytic signal) → earth frame (roll, heave) → engine (S, Q, M →
+intensity, CF) → Hann smoothing → coherence peaks.  Build it once (grid,
+mode, device); it compiles the kernels on first use and keeps them and its
+device buffers for every later ping, which is what a processing server or a
+survey worker holds.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .engine import BeamformInput, Sums, get_engine, interp_mode
+from .engine.common import check_outputs
+from .errors import ClbeamError, GeometryError, OptionError, require
+from .geometry import PolarGrid, check_positions, to_earth_frame
+from .ping import Ping
+from .io import PEAK_COLUMNS
+from .postprocess import DEFAULT_THRESHOLD, coherence_peaks, hann_smooth
+from .signal import compress_analytic, upsample_analytic
+
+log = logging.getLogger(__name__)
+
+
+
+@dataclass(frozen=True)
+class ImagingOptions:
+    """How a ping is imaged.
+
+    Attributes
+    ----------
+    interp : str
+        Interpolation mode (see :data:`clbeam.engine.INTERP_MODES`).
+    upsample : int
+        FFT upsampling factor of the analytic signal before interpolation.
+    outputs : tuple of str
+        Requested outputs: ``"intensity"``, ``"cf"``, ``"sums"``; CF also
+        gives the smoothed CF and the coherence peaks.
+    threshold : float
+        Coherence-peak threshold on the smoothed CF (paper: 0.25).
+    sound_speed_m_s : float or None
+        Override of the file's sound speed (m/s).
+    precision : str
+        ``"float32"`` or ``"float64"`` kernel arithmetic (OpenCL backend).
+    """
+
+    interp: str = "linear"
+    upsample: int = 1
+    outputs: tuple = ("intensity", "cf")
+    threshold: float = DEFAULT_THRESHOLD
+    sound_speed_m_s: float | None = None
+    precision: str = "float32"
+
+    def __post_init__(self):
+        interp_mode(self.interp)
+        object.__setattr__(self, "outputs", tuple(sorted(check_outputs(self.outputs))))
+        require(int(self.upsample) == self.upsample and 1 <= self.upsample <= 16, OptionError,
+                f"upsample must be an integer 1-16, got {self.upsample!r}")
+        require(0 <= self.threshold <= 1, OptionError, f"threshold must be within 0-1, got {self.threshold!r}")
+        if self.sound_speed_m_s is not None:
+            require(1300 <= self.sound_speed_m_s <= 1700, OptionError,
+                    f"sound speed must be within 1300-1700 m/s, got {self.sound_speed_m_s!r}")
+
+
+@dataclass
+class PingImage:
+    """The images and coherence peaks of one ping.
+
+    Attributes
+    ----------
+    ping : int
+        Ping index in its file.
+    grid : PolarGrid
+        Image grid; every array is ``(n_angle, n_range)``.
+    intensity, cf, cf_smooth : numpy.ndarray or None
+        ``|S|^2``, coherence factor and its 7-point Hann smoothing along range.
+    sums : Sums or None
+        Raw sums ``S``, ``Q``, ``M`` (when requested) for stacking pings.
+    peaks : list of dict
+        One row per coherence peak (:data:`PEAK_COLUMNS`, plus navigation).
+    timings_s : dict
+        Seconds spent per stage.
+    """
+
+    ping: int
+    grid: PolarGrid
+    intensity: np.ndarray | None
+    cf: np.ndarray | None
+    cf_smooth: np.ndarray | None
+    sums: Sums | None
+    peaks: list
+    source_yz_m: tuple
+    timings_s: dict = field(default_factory=dict)
+    n_channels_used: int = 0
+
+
+class Imager:
+    """Images pings on a fixed grid with fixed options.
+
+    Parameters
+    ----------
+    grid : PolarGrid
+        Image grid (earth frame, centre at the source unless given).
+    options : ImagingOptions, optional
+        Mode, outputs, threshold …
+    backend : {"opencl", "reference"}
+        Engine backend.
+    device : str or int, optional
+        OpenCL device (index or name substring).
+    engine : object, optional
+        An existing engine to share (e.g. one per device in a server).
+
+    Examples
+    --------
+    >>> imager = Imager(PolarGrid.regular(max_range_m=700))      # doctest: +SKIP
+    >>> with PingFile("line1.nc") as f:                           # doctest: +SKIP
+    ...     images = [imager.image(p) for p in f]
+    """
+
+    def __init__(self, grid: PolarGrid, options: ImagingOptions | None = None, *, backend: str = "opencl",
+                 device=None, engine=None):
+        self.grid = grid
+        self.options = options or ImagingOptions()
+        self.engine = engine if engine is not None else get_engine(backend, device=device,
+                                                                   precision=self.options.precision)
+
+    # -- preparation ------------------------------------------------------
+    def analytic_channels(self, ping: Ping) -> tuple[np.ndarray, np.ndarray]:
+        """Pulse-compressed analytic signal of the usable channels.
+
+        Returns ``(data, used)``: complex ``(n_used, n_sample)`` and the bool
+        mask of the channels used.  Channels flagged invalid, entirely zero or
+        entirely non-finite are left out (logged).
+        """
+        x = ping.samples
+        used = np.asarray(ping.channel_valid, dtype=bool).copy()
+        finite = np.isfinite(x)
+        dead = ~finite.any(axis=1) | ~np.any(np.where(finite, x, 0) != 0, axis=1)
+        if (dead & used).any():
+            log.warning("ping %d: %d channel(s) all zero or non-finite, left out: %s", ping.index,
+                        int((dead & used).sum()), np.flatnonzero(dead & used).tolist())
+        used &= ~dead
+        n_bad = int((~finite[used]).sum())
+        if n_bad:
+            log.warning("ping %d: %d non-finite sample(s) skipped", ping.index, n_bad)
+        if ping.kind == "raw":
+            require(ping.pulse is not None, OptionError, "raw samples need a pulse description to compress")
+            data = compress_analytic(x[used], ping.pulse.replica(ping.sample_rate_hz))
+        else:
+            data = np.where(finite[used], x[used], np.nan).astype(np.complex128)
+        return data, used
+
+    def beamform_input(self, ping: Ping) -> BeamformInput:
+        """Everything the engine needs for ``ping``: analytic channels and
+        roll/heave-corrected offsets from the grid centre."""
+        check_positions("element positions", ping.element_pos_m)
+        check_positions("source position", ping.source_pos_m)
+        data, used = self.analytic_channels(ping)
+        elements = to_earth_frame(ping.element_pos_m[used], roll_deg=ping.roll_deg, heave_m=ping.heave_m)
+        source = to_earth_frame(ping.source_pos_m, roll_deg=ping.roll_deg, heave_m=ping.heave_m)
+        centre = np.r_[0.0, self.grid.centre(tuple(ping.source_pos_m[1:]))]
+        fs = ping.sample_rate_hz
+        if self.options.upsample > 1:
+            data = upsample_analytic(data, self.options.upsample)
+            fs *= self.options.upsample
+        fc = ping.pulse.centre_frequency_hz if ping.pulse is not None else None
+        return BeamformInput(
+            data=data, sample_rate_hz=fs, t0_s=ping.t0_s,
+            sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
+            element_offsets_m=elements - centre, source_offset_m=source - centre,
+            centre_frequency_hz=fc or 0.0)
+
+    # -- imaging ----------------------------------------------------------
+    def image(self, ping: Ping, *, range_window_m: np.ndarray | None = None) -> PingImage:
+        """Image one ping.
+
+        Parameters
+        ----------
+        ping : Ping
+            The ping (see :class:`clbeam.ping.PingFile`).
+        range_window_m : numpy.ndarray, optional
+            ``(n_angle, 2)`` ranges (m) to compute per angle (e.g. a seabed
+            band); cells outside are 0.
+        """
+        t = {}
+        t_start = time.perf_counter()
+        inp = self.beamform_input(ping)
+        t["compress_s"] = time.perf_counter() - t_start
+        scale_exp = amplitude_exponent(inp.data)
+        if scale_exp:
+            inp = BeamformInput(**{**inp.__dict__, "data": np.ldexp(inp.data, -scale_exp)})
+        if inp.n_channels == 0:
+            log.warning("ping %d: no usable channel; the image is empty", ping.index)
+        t0 = time.perf_counter()
+        outs = set(self.options.outputs)
+        sums = self.engine.beamform(inp, self.grid, interp=self.options.interp, outputs=outs | {"intensity"} if "cf" in outs else outs,
+                                    range_window_m=range_window_m)
+        t["image_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        # undo the power-of-two normalisation exactly, in float64
+        intensity = None if sums.intensity is None else np.ldexp(sums.intensity.astype(np.float64), 2 * scale_exp)
+        if sums.s is not None:
+            sums.s = np.ldexp(sums.s.astype(np.complex128), scale_exp)
+            sums.q = np.ldexp(sums.q.astype(np.float64), 2 * scale_exp)
+        cf = cf_smooth = None
+        peaks = []
+        source_yz = tuple(self.grid.centre(tuple(ping.source_pos_m[1:])))
+        if sums.cf is not None:
+            cf = sums.cf
+            cf_smooth = hann_smooth(cf)
+            peaks = self.peak_rows(ping, cf_smooth, intensity, source_yz)
+        t["postprocess_s"] = time.perf_counter() - t0
+        return PingImage(ping=ping.index, grid=self.grid,
+                         intensity=intensity if "intensity" in self.options.outputs else None,
+                         cf=cf, cf_smooth=cf_smooth, sums=sums if "sums" in self.options.outputs else None,
+                         peaks=peaks, source_yz_m=source_yz, timings_s=t, n_channels_used=inp.n_channels)
+
+    def peak_rows(self, ping: Ping, cf_smooth: np.ndarray, intensity: np.ndarray | None, centre_yz) -> list:
+        """Rows of the peaks table for one ping (SPEC §3 step 7)."""
+        idx = coherence_peaks(cf_smooth, self.options.threshold)
+        g = self.grid
+        rows = []
+        for ia, ir in idx:
+            r, a = float(g.ranges_m[ir]), float(g.angles_deg[ia])
+            inten = float(intensity[ia, ir]) if intensity is not None else np.nan
+            row = {
+                "ping": ping.index, "range_m": r, "angle_deg": a,
+                "y_m": centre_yz[0] + r * np.sin(np.deg2rad(a)), "z_m": centre_yz[1] + r * np.cos(np.deg2rad(a)),
+                "cf": float(cf_smooth[ia, ir]),
+                "intensity_db": 10 * np.log10(inten) if inten > 0 else -np.inf,
+            }
+            if ping.has_navigation:
+                row["latitude_deg"], row["longitude_deg"] = ping.latitude_deg, ping.longitude_deg
+                if ping.heading_deg is not None:
+                    row["heading_deg"] = ping.heading_deg
+            rows.append(row)
+        return rows
+
+
+def amplitude_exponent(data: np.ndarray) -> int:
+    """Power-of-two exponent ``e`` with ``max |data| / 2^e`` in [0.5, 1).
+
+    Dividing by ``2^e`` is exact, keeps float32 sums far from overflow
+    (|S|^2 of 1e30-amplitude data) and underflow (1e-30), and is undone
+    exactly afterwards; 0 for all-zero or empty data.
+    """
+    if data.size == 0:
+        return 0
+    peak = np.nanmax(np.abs(data)) if np.isfinite(data).any() else 0.0
+    if not np.isfinite(peak) or peak == 0:
+        return 0
+    return int(np.frexp(peak)[1])
+
+
+__all__ = ["Imager", "ImagingOptions", "PingImage", "PEAK_COLUMNS", "ClbeamError", "GeometryError"]
