@@ -9,6 +9,7 @@ survey worker holds.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -193,7 +194,7 @@ class Imager:
         t["compress_s"] = time.perf_counter() - t_start
         scale_exp = amplitude_exponent(inp.data)
         if scale_exp:
-            inp = BeamformInput(**{**inp.__dict__, "data": np.ldexp(inp.data, -scale_exp)})
+            inp = dataclasses.replace(inp, data=inp.data * np.ldexp(1.0, -scale_exp))
         if inp.n_channels == 0:
             log.warning("ping %d: no usable channel; the image is empty", ping.index)
         t0 = time.perf_counter()
@@ -205,7 +206,7 @@ class Imager:
         # undo the power-of-two normalisation exactly, in float64
         intensity = None if sums.intensity is None else np.ldexp(sums.intensity.astype(np.float64), 2 * scale_exp)
         if sums.s is not None:
-            sums.s = np.ldexp(sums.s.astype(np.complex128), scale_exp)
+            sums.s = sums.s.astype(np.complex128) * np.ldexp(1.0, scale_exp)
             sums.q = np.ldexp(sums.q.astype(np.float64), 2 * scale_exp)
         cf = cf_smooth = None
         peaks = []

@@ -375,6 +375,9 @@ def write_ping_file(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     if p.suffix == ".zarr":
         ds.to_zarr(p, mode="w")
     else:
-        complex_vars = any(np.issubdtype(v.dtype, np.complexfloating) for v in ds.data_vars.values())
-        ds.to_netcdf(p, engine="h5netcdf", invalid_netcdf=complex_vars or None)
+        if any(np.issubdtype(v.dtype, np.complexfloating) for v in ds.data_vars.values()):
+            # the netCDF4 library's complex compound type (nc-complex), readable by both engines
+            ds.to_netcdf(p, engine="netcdf4", auto_complex=True)
+        else:
+            ds.to_netcdf(p, engine="h5netcdf")
     return p

@@ -83,8 +83,10 @@ __kernel void beamform(
             interpolate(data + (size_t)n * (2 * N_SAMPLES), k, t, &re, &im);
 #if BASEBAND
             {
-                real_t c;
-                const real_t s = sincos(phase0 + carrier_rad_per_sample * pos, &c);
+                /* sin and cos rather than sincos: no private-memory out
+                 * argument, which some implementations and Oclgrind mishandle */
+                const real_t ph = phase0 + carrier_rad_per_sample * pos;
+                const real_t s = sin(ph), c = cos(ph);
                 const real_t r2 = re * c - im * s;
                 im = re * s + im * c;
                 re = r2;

@@ -1,0 +1,42 @@
+"""Run every kernel variant on a tiny grid whose delays run off both ends of
+the record; executed under Oclgrind by test_oclgrind.py.
+
+Prints the device used and one line per variant with its largest relative
+difference to the float64 reference.
+"""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from clbeam.engine import INTERP_MODES, BeamformInput, get_engine  # noqa: E402
+from clbeam.engine.opencl import device_has_fp64  # noqa: E402
+from clbeam.geometry import PolarGrid  # noqa: E402
+from scenes import bandlimited_noise  # noqa: E402
+
+data = bandlimited_noise((6, 160), seed=2)
+data[2, 40:45] = np.nan
+eo = np.zeros((6, 3))
+eo[:, 1] = np.linspace(-1.5, 1.5, 6)
+inp = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0)
+# ranges from the source (delays before sample 0) to beyond the record's end
+grid = PolarGrid.regular(range_res_m=0.4, angle_res_deg=20, max_range_m=4.0, angles_deg=(-80, 80))
+ref = get_engine("reference")
+precisions = ["float32"]
+first = get_engine("opencl")
+print("device:", first.label)
+if device_has_fp64(first.device):
+    precisions.append("float64")
+for precision in precisions:
+    eng = get_engine("opencl", precision=precision)
+    for mode, spec in INTERP_MODES.items():
+        if spec.kernel_id < 0:
+            continue
+        got = eng.beamform(inp, grid, interp=mode, outputs=("intensity", "cf", "sums"))
+        want = ref.beamform(inp, grid, interp=mode, outputs=("intensity", "cf", "sums"))
+        rel = np.linalg.norm(got.intensity - want.intensity) / np.linalg.norm(want.intensity)
+        m_equal = np.array_equal(got.m, want.m)
+        print(f"variant {precision} {mode} rel={rel:.2e} m_equal={m_equal} m_range={want.m.min()}-{want.m.max()}")
