@@ -1,8 +1,12 @@
 /* Spherical-wave delay-and-sum on a polar grid: coherent and incoherent sums
  * giving intensity and coherence factor (Holland et al. 2024, eqs. 1-2).
  *
- * One work-item per cell (angle ia, range ir); dimension 0 runs over angle so
- * that neighbouring work-items read neighbouring samples.
+ * One work-item per cell.  The host launches a list of tiles: a tile is
+ * LOCAL_A consecutive angles at one range row, one work-group, so that
+ * neighbouring work-items read neighbouring samples; tiles with no cell to
+ * compute are not launched.  The body has no early return and no branch in
+ * the channel loop (bounds and finiteness become selects) so that PoCL's
+ * work-item loop vectoriser and GPU SIMD lanes stay converged.
  *
  * Compile-time macros (-D):
  *   REAL_T          float or double (double needs cl_khr_fp64)
@@ -11,6 +15,7 @@
  *                   the carrier phase after interpolation
  *   N_SAMPLES, N_RANGE  record length and range cells
  *   WANT_INTENSITY, WANT_CF, WANT_SUMS   which outputs are written
+ *   CHANNEL_BARRIER 1 on CPU devices (see the channel loop)
  *
  * Travel time in samples of cell r for channel n, with every position an
  * offset o from the grid centre and u the unit vector of the cell's angle:
@@ -39,9 +44,9 @@ __kernel void beamform(
     __global const real_t *restrict data,      /* [n_chan][N_SAMPLES][2] */
     __global const real_t *restrict chan,      /* [n_chan][4]: o_y, o_z, |o|^2, 0 (m, m, m^2) */
     const int n_chan,
-    __global const real_t *restrict angle_tab, /* [n_angle][2]: sin, cos */
-    __global const int *restrict window,       /* [n_angle][2]: first, end range index computed */
-    const int n_angle,
+    __global const int *restrict tiles,        /* [n_tiles][2]: first angle, range row */
+    __global const real_t *restrict angle_tab, /* [n_angle_padded][2]: sin, cos */
+    __global const int *restrict window,       /* [n_angle_padded][2]: first, end range index computed */
     __global const real_t *restrict range_m,   /* [N_RANGE] */
     __global const int *restrict base_int,     /* [N_RANGE] */
     __global const real_t *restrict base_frac, /* [N_RANGE] */
@@ -49,56 +54,62 @@ __kernel void beamform(
     const real_t src_oy, const real_t src_oz, const real_t src_q,
     const real_t samples_per_m,                /* fs / c */
     const real_t carrier_rad_per_sample,       /* 2 pi fc / fs, BASEBAND */
-    __global real_t *restrict out_intensity,   /* [n_angle][N_RANGE] */
+    __global real_t *restrict out_intensity,   /* [n_angle_padded][N_RANGE] */
     __global real_t *restrict out_cf,
-    __global real_t *restrict out_s,           /* [n_angle][N_RANGE][2] */
+    __global real_t *restrict out_s,           /* [n_angle_padded][N_RANGE][2] */
     __global real_t *restrict out_q,
     __global int *restrict out_m)
 {
-    const int ia = get_global_id(0);
-    const int ir = get_global_id(1);
-    if (ia >= n_angle || ir >= N_RANGE)
-        return;
+    const int tile = get_group_id(0);
+    const int ia = tiles[2 * tile] + get_local_id(0);
+    const int ir = tiles[2 * tile + 1];
     const size_t cell = (size_t)ia * N_RANGE + ir;
+    const int active = ir >= window[2 * ia] && ir < window[2 * ia + 1];
 
+    const real_t sn = angle_tab[2 * ia], cs = angle_tab[2 * ia + 1];
+    const real_t R = range_m[ir];
+    const int k0 = base_int[ir];
+    const real_t frac0 = base_frac[ir]
+        + offset_delay_m(R, sn * src_oy + cs * src_oz, src_q) * samples_per_m;
+#if BASEBAND
+    const real_t phase0 = base_phase[ir];
+#endif
     real_t sr = 0, si = 0, q = 0;
     int m = 0;
-    if (ir >= window[2 * ia] && ir < window[2 * ia + 1]) {
-        const real_t sn = angle_tab[2 * ia], cs = angle_tab[2 * ia + 1];
-        const real_t R = range_m[ir];
-        const int k0 = base_int[ir];
-        const real_t frac0 = base_frac[ir]
-            + offset_delay_m(R, sn * src_oy + cs * src_oz, src_q) * samples_per_m;
-#if BASEBAND
-        const real_t phase0 = base_phase[ir];
+    for (int n = 0; n < n_chan; ++n) {
+#if CHANNEL_BARRIER
+        /* CPU drivers (PoCL) turn a uniform loop holding a barrier into
+         * work-item loops inside it, which their vectoriser then vectorises
+         * across cells; every work-item reaches it (no early return) */
+        barrier(CLK_LOCAL_MEM_FENCE);
 #endif
-        for (int n = 0; n < n_chan; ++n) {
-            const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2];
-            const real_t pos = frac0 + offset_delay_m(R, sn * oy + cs * oz, oq) * samples_per_m;
-            real_t t;
-            const int k = k0 + split_position(pos, &t);
-            if (k - TAPS_BEFORE < 0 || k + TAPS_AFTER >= N_SAMPLES)
-                continue;
-            real_t re, im;
-            interpolate(data + (size_t)n * (2 * N_SAMPLES), k, t, &re, &im);
+        const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2];
+        const real_t pos = frac0 + offset_delay_m(R, sn * oy + cs * oz, oq) * samples_per_m;
+        real_t t;
+        const int k = k0 + split_position(pos, &t);
+        const int inside = k - TAPS_BEFORE >= 0 && k + TAPS_AFTER < N_SAMPLES;
+        /* read a clamped tap (always in the buffer), discard it when outside */
+        const int kc = clamp(k, TAPS_BEFORE, N_SAMPLES - 1 - TAPS_AFTER);
+        real_t re, im;
+        interpolate(data, n * (2 * N_SAMPLES) + 2 * kc, t, &re, &im);
 #if BASEBAND
-            {
-                /* sin and cos rather than sincos: no private-memory out
-                 * argument, which some implementations and Oclgrind mishandle */
-                const real_t ph = phase0 + carrier_rad_per_sample * pos;
-                const real_t s = sin(ph), c = cos(ph);
-                const real_t r2 = re * c - im * s;
-                im = re * s + im * c;
-                re = r2;
-            }
-#endif
-            if (!(isfinite(re) && isfinite(im)))
-                continue;
-            sr += re;
-            si += im;
-            q += re * re + im * im;
-            m += 1;
+        {
+            /* sin and cos rather than sincos: no private-memory out
+             * argument, which some implementations and Oclgrind mishandle */
+            const real_t ph = phase0 + carrier_rad_per_sample * pos;
+            const real_t s = sin(ph), c = cos(ph);
+            const real_t r2 = re * c - im * s;
+            im = re * s + im * c;
+            re = r2;
         }
+#endif
+        const int ok = active && inside && isfinite(re) && isfinite(im);
+        re = ok ? re : (real_t)0;
+        im = ok ? im : (real_t)0;
+        sr += re;
+        si += im;
+        q += re * re + im * im;
+        m += ok;
     }
     const real_t inten = sr * sr + si * si;
 #if WANT_INTENSITY

@@ -22,8 +22,8 @@ from .common import BeamformInput, InterpMode, Sums, baseband, carrier_phase, ce
 
 log = logging.getLogger(__name__)
 
-#: work-items per work-group along angle (dimension 0); clamped to the device limit
-LOCAL_ANGLE = 16
+#: work-items per work-group (consecutive angles at one range row); clamped to the device limit
+LOCAL_ANGLE = 64
 #: fraction of the device's global memory one tile of outputs may use
 TILE_MEMORY_FRACTION = 0.25
 
@@ -123,6 +123,7 @@ class OpenCLEngine:
         self._buffers: dict = {}
         self._lock = threading.Lock()
         self.max_tile_cells = max_tile_cells
+        self.channel_barrier = bool(self.device.type & cl.device_type.CPU)
         log.info("OpenCL device: %s, %s", device_label(self.device), precision)
 
     @property
@@ -154,6 +155,7 @@ class OpenCLEngine:
                 f"-DWANT_INTENSITY={int('intensity' in outs)}",
                 f"-DWANT_CF={int('cf' in outs)}",
                 f"-DWANT_SUMS={int('sums' in outs)}",
+                f"-DCHANNEL_BARRIER={int(self.channel_barrier)}",
             ]
             try:
                 prg = cl.Program(self.ctx, kernel_source()).build(options=opts)
@@ -212,6 +214,8 @@ class OpenCLEngine:
         real = self.real
         n_a, n_r = grid.shape
         n_chan, n_samp = inp.n_channels, inp.n_samples
+        require(2 * n_chan * (n_samp + 1) < 2**31, GridError,
+                f"{n_chan} channels x {n_samp} samples exceed the kernel's 32-bit indexing; image fewer samples")
         data = np.asarray(inp.data)
         if mode.baseband:
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
@@ -244,7 +248,9 @@ class OpenCLEngine:
 
         itemsize = np.dtype(real).itemsize
         per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + 3 * ("sums" in outs)) + 4 * ("sums" in outs))
-        rows = self._tile_angles(grid, per_cell)
+        wg_max = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device)
+        la = max(1, min(LOCAL_ANGLE, wg_max))
+        rows = max(la, self._tile_angles(grid, per_cell) // la * la)
         res = Sums()
         full = {}
         if "intensity" in outs:
@@ -255,31 +261,49 @@ class OpenCLEngine:
             full["s"] = np.empty((n_a, n_r, 2), dtype=real)
             full["q"] = res.q = np.empty((n_a, n_r), dtype=real)
             full["m"] = res.m = np.empty((n_a, n_r), dtype=np.int32)
-        tile_cells = rows * n_r
-        bufs = {
-            "intensity": self._buffer("out_intensity", tile_cells * itemsize if "intensity" in outs else 16),
-            "cf": self._buffer("out_cf", tile_cells * itemsize if "cf" in outs else 16),
-            "s": self._buffer("out_s", 2 * tile_cells * itemsize if "sums" in outs else 16),
-            "q": self._buffer("out_q", tile_cells * itemsize if "sums" in outs else 16),
-            "m": self._buffer("out_m", tile_cells * 4 if "sums" in outs else 16),
-        }
-        wg_max = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device)
-        local_a = max(1, min(LOCAL_ANGLE, wg_max))
+        sizes = {"intensity": itemsize, "cf": itemsize, "s": 2 * itemsize, "q": itemsize, "m": 4}
+        bufs = {name: self._buffer("out_" + name, rows * n_r * sizes[name] if name in full else 16) for name in sizes}
         for a0 in range(0, n_a, rows):
             na = min(rows, n_a - a0)
-            b_angle = self._upload("angle", angle_tab[a0:a0 + na])
-            b_win = self._upload("window", window[a0:a0 + na])
-            gsize = (-(-na // local_a) * local_a, n_r)
-            kernel(self.queue, gsize, (local_a, 1),
-                   b_data, b_chan, np.int32(n_chan), b_angle, b_win, np.int32(na),
-                   b_range, b_bint, b_bfrac, b_bphase,
-                   real(so[1]), real(so[2]), real(np.dot(so, so)),
-                   real(inp.samples_per_m),
-                   real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
-                   bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"])
+            na_pad = -(-na // la) * la
+            tab = np.zeros((na_pad, 2), dtype=real)
+            tab[:na] = angle_tab[a0:a0 + na]
+            win = np.zeros((na_pad, 2), dtype=np.int32)
+            win[:na] = window[a0:a0 + na]
+            tiles = launch_tiles(win, la)
             for name, arr in full.items():
-                cl.enqueue_copy(self.queue, arr[a0:a0 + na], bufs[name], is_blocking=False)
+                cl.enqueue_fill_buffer(self.queue, bufs[name], np.zeros(1, dtype=arr.dtype), 0, na_pad * n_r * sizes[name])
+            if len(tiles):
+                kernel(self.queue, (len(tiles) * la,), (la,),
+                       b_data, b_chan, np.int32(n_chan), self._upload("tiles", tiles),
+                       self._upload("angle", tab), self._upload("window", win),
+                       b_range, b_bint, b_bfrac, b_bphase,
+                       real(so[1]), real(so[2]), real(np.dot(so, so)),
+                       real(inp.samples_per_m),
+                       real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
+                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"])
+            for name, arr in full.items():
+                cl.enqueue_copy(self.queue, arr[a0:a0 + na], bufs[name], is_blocking=True)
         self.queue.finish()
         if "sums" in outs:
             res.s = full["s"][..., 0] + 1j * full["s"][..., 1]
         return res
+
+
+def launch_tiles(window: np.ndarray, local_angles: int) -> np.ndarray:
+    """Work-group tiles ``(n_tiles, 2)`` = (first angle, range row) covering
+    every cell inside ``window`` (``(n_angle_padded, 2)`` first/end range).
+
+    A tile is ``local_angles`` consecutive angles at one range row; for each
+    block of angles the rows from the smallest first to the largest end are
+    launched, the kernel zeroes the cells of a tile outside their own window.
+    """
+    n = window.shape[0] // local_angles
+    blocks = window.reshape(n, local_angles, 2)
+    nonempty = blocks[:, :, 1] > blocks[:, :, 0]
+    lo = np.where(nonempty, blocks[:, :, 0], np.iinfo(np.int32).max).min(axis=1)
+    hi = np.where(nonempty, blocks[:, :, 1], 0).max(axis=1)
+    counts = np.maximum(hi - lo, 0)
+    first = np.repeat(np.arange(n) * local_angles, counts)
+    rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi) if b > a] or [np.zeros(0, dtype=np.int64)])
+    return np.stack([first, rows], axis=1).astype(np.int32)
