@@ -24,7 +24,7 @@
  *              integer and a fraction so float32 keeps sub-sample precision
  *              at kilometre ranges),
  *   d(o) = |R u - o| - R = (|o|^2 - 2 R u.o) / (|R u - o| + R)
- * which has no cancellation at any range.
+ * which has no cancellation at any range (cells at the grid's x = 0 plane).
  */
 #if REAL_IS_DOUBLE
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
@@ -33,16 +33,19 @@ typedef REAL_T real_t;
 
 #include "interp.h"
 
-inline real_t offset_delay_m(real_t R, real_t u_dot_o, real_t q)
+inline real_t offset_delay_m(real_t R, real_t sn, real_t cs, real_t oy, real_t oz, real_t ox2, real_t q)
 {
-    real_t num = q - (real_t)2 * R * u_dot_o;
-    real_t den = sqrt(fmax(R * R - (real_t)2 * R * u_dot_o + q, (real_t)0)) + R;
+    /* |R u - o| from its components (accurate even where a cell sits on an
+     * element, unlike R^2 - 2 R u.o + |o|^2), numerator without cancellation */
+    const real_t dy = R * sn - oy, dz = R * cs - oz;
+    const real_t num = q - (real_t)2 * R * (sn * oy + cs * oz);
+    const real_t den = sqrt(dy * dy + dz * dz + ox2) + R;
     return den > (real_t)0 ? num / den : (real_t)0;
 }
 
 __kernel void beamform(
     __global const real_t *restrict data,      /* [n_chan][N_SAMPLES][2] */
-    __global const real_t *restrict chan,      /* [n_chan][4]: o_y, o_z, |o|^2, 0 (m, m, m^2) */
+    __global const real_t *restrict chan,      /* [n_chan][4]: o_y, o_z, |o|^2, o_x^2 (m, m, m^2, m^2) */
     const int n_chan,
     __global const int *restrict tiles,        /* [n_tiles][2]: first angle, range row */
     __global const real_t *restrict angle_tab, /* [n_angle_padded][2]: sin, cos */
@@ -51,7 +54,7 @@ __kernel void beamform(
     __global const int *restrict base_int,     /* [N_RANGE] */
     __global const real_t *restrict base_frac, /* [N_RANGE] */
     __global const real_t *restrict base_phase,/* [N_RANGE] carrier phase of base_int (rad), BASEBAND */
-    const real_t src_oy, const real_t src_oz, const real_t src_q,
+    const real_t src_oy, const real_t src_oz, const real_t src_ox2, const real_t src_q,
     const real_t samples_per_m,                /* fs / c */
     const real_t carrier_rad_per_sample,       /* 2 pi fc / fs, BASEBAND */
     __global real_t *restrict out_intensity,   /* [n_angle_padded][N_RANGE] */
@@ -70,7 +73,7 @@ __kernel void beamform(
     const real_t R = range_m[ir];
     const int k0 = base_int[ir];
     const real_t frac0 = base_frac[ir]
-        + offset_delay_m(R, sn * src_oy + cs * src_oz, src_q) * samples_per_m;
+        + offset_delay_m(R, sn, cs, src_oy, src_oz, src_ox2, src_q) * samples_per_m;
 #if BASEBAND
     const real_t phase0 = base_phase[ir];
 #endif
@@ -83,8 +86,8 @@ __kernel void beamform(
          * across cells; every work-item reaches it (no early return) */
         barrier(CLK_LOCAL_MEM_FENCE);
 #endif
-        const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2];
-        const real_t pos = frac0 + offset_delay_m(R, sn * oy + cs * oz, oq) * samples_per_m;
+        const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2], ox2 = chan[4 * n + 3];
+        const real_t pos = frac0 + offset_delay_m(R, sn, cs, oy, oz, ox2, oq) * samples_per_m;
         real_t t;
         const int k = k0 + split_position(pos, &t);
         const int inside = k - TAPS_BEFORE >= 0 && k + TAPS_AFTER < N_SAMPLES;

@@ -225,7 +225,7 @@ class OpenCLEngine:
 
         o = np.asarray(inp.element_offsets_m, dtype=np.float64)
         chan = np.zeros((n_chan, 4), dtype=real)
-        chan[:, 0], chan[:, 1], chan[:, 2] = o[:, 1], o[:, 2], np.sum(o * o, axis=1)
+        chan[:, 0], chan[:, 1], chan[:, 2], chan[:, 3] = o[:, 1], o[:, 2], np.sum(o * o, axis=1), o[:, 0] ** 2
         so = np.asarray(inp.source_offset_m, dtype=np.float64)
 
         th = np.deg2rad(grid.angles_deg)
@@ -278,7 +278,7 @@ class OpenCLEngine:
                        b_data, b_chan, np.int32(n_chan), self._upload("tiles", tiles),
                        self._upload("angle", tab), self._upload("window", win),
                        b_range, b_bint, b_bfrac, b_bphase,
-                       real(so[1]), real(so[2]), real(np.dot(so, so)),
+                       real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
                        real(inp.samples_per_m),
                        real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
                        bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"])
