@@ -1,21 +1,21 @@
 /* Spherical-wave delay-and-sum on a polar grid: coherent and incoherent sums
  * giving intensity and coherence factor (Holland et al. 2024, eqs. 1-2).
  *
- * One work-item per cell.  The host launches a list of tiles: a tile is
- * LOCAL_A consecutive angles at one range row, one work-group, so that
- * neighbouring work-items read neighbouring samples; tiles with no cell to
- * compute are not launched.  The body has no early return and no branch in
- * the channel loop (bounds and finiteness become selects) so that PoCL's
- * work-item loop vectoriser and GPU SIMD lanes stay converged.
+ * Work decomposition: a work-item computes VEC cells, consecutive angles at
+ * one range row, as vector lanes (vector.h); a work-group holds LOCAL such
+ * work-items.  The host launches a list of tiles (VEC * LOCAL angles at one
+ * range row each) and leaves out tiles with no cell to compute.  The body
+ * has no early return and no branch in the channel loop: record bounds and
+ * finiteness are lane masks, so SIMD lanes stay converged.
  *
  * Compile-time macros (-D):
- *   REAL_T          float or double (double needs cl_khr_fp64)
- *   INTERP, LANCZOS_A   interpolation mode (see interp.h)
- *   BASEBAND        1: data are basebanded by the carrier; the kernel restores
- *                   the carrier phase after interpolation
+ *   REAL_T, REAL_IS_DOUBLE  float or double (double needs cl_khr_fp64)
+ *   VEC                 cells per work-item (1, 2, 4, 8, 16)
+ *   INTERP, LANCZOS_A   interpolation mode (interp.h)
+ *   BASEBAND            1: data are basebanded by the carrier; the kernel
+ *                       restores the carrier phase after interpolation
  *   N_SAMPLES, N_RANGE  record length and range cells
  *   WANT_INTENSITY, WANT_CF, WANT_SUMS   which outputs are written
- *   CHANNEL_BARRIER 1 on CPU devices (see the channel loop)
  *
  * Travel time in samples of cell r for channel n, with every position an
  * offset o from the grid centre and u the unit vector of the cell's angle:
@@ -24,23 +24,24 @@
  *              integer and a fraction so float32 keeps sub-sample precision
  *              at kilometre ranges),
  *   d(o) = |R u - o| - R = (|o|^2 - 2 R u.o) / (|R u - o| + R)
- * which has no cancellation at any range (cells at the grid's x = 0 plane).
+ * which has no cancellation at any range (cells lie in the plane x = 0).
  */
 #if REAL_IS_DOUBLE
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #endif
 typedef REAL_T real_t;
 
+#include "vector.h"
 #include "interp.h"
 
-inline real_t offset_delay_m(real_t R, real_t sn, real_t cs, real_t oy, real_t oz, real_t ox2, real_t q)
+inline vreal offset_delay_m(real_t R, vreal sn, vreal cs, real_t oy, real_t oz, real_t ox2, real_t q)
 {
     /* |R u - o| from its components (accurate even where a cell sits on an
-     * element, unlike R^2 - 2 R u.o + |o|^2), numerator without cancellation */
-    const real_t dy = R * sn - oy, dz = R * cs - oz;
-    const real_t num = q - (real_t)2 * R * (sn * oy + cs * oz);
-    const real_t den = sqrt(dy * dy + dz * dz + ox2) + R;
-    return den > (real_t)0 ? num / den : (real_t)0;
+     * element, unlike R^2 - 2 R u.o + |o|^2); numerator without cancellation */
+    const vreal dy = R * sn - oy, dz = R * cs - oz;
+    const vreal num = q - (real_t)2 * R * (sn * oy + cs * oz);
+    const vreal den = sqrt(dy * dy + dz * dz + ox2) + R;
+    return select((vreal)0, num / den, RMASK(den > (real_t)0));
 }
 
 __kernel void beamform(
@@ -48,8 +49,10 @@ __kernel void beamform(
     __global const real_t *restrict chan,      /* [n_chan][4]: o_y, o_z, |o|^2, o_x^2 (m, m, m^2, m^2) */
     const int n_chan,
     __global const int *restrict tiles,        /* [n_tiles][2]: first angle, range row */
-    __global const real_t *restrict angle_tab, /* [n_angle_padded][2]: sin, cos */
-    __global const int *restrict window,       /* [n_angle_padded][2]: first, end range index computed */
+    __global const real_t *restrict angle_sin, /* [n_angle_padded] */
+    __global const real_t *restrict angle_cos, /* [n_angle_padded] */
+    __global const int *restrict win_first,    /* [n_angle_padded] first range index computed */
+    __global const int *restrict win_end,      /* [n_angle_padded] end range index computed */
     __global const real_t *restrict range_m,   /* [N_RANGE] */
     __global const int *restrict base_int,     /* [N_RANGE] */
     __global const real_t *restrict base_frac, /* [N_RANGE] */
@@ -59,72 +62,66 @@ __kernel void beamform(
     const real_t carrier_rad_per_sample,       /* 2 pi fc / fs, BASEBAND */
     __global real_t *restrict out_intensity,   /* [n_angle_padded][N_RANGE] */
     __global real_t *restrict out_cf,
-    __global real_t *restrict out_s,           /* [n_angle_padded][N_RANGE][2] */
+    __global real_t *restrict out_s,           /* [2][n_angle_padded][N_RANGE]: re plane, im plane */
     __global real_t *restrict out_q,
-    __global int *restrict out_m)
+    __global int *restrict out_m,
+    const int n_angle_padded)
 {
     const int tile = get_group_id(0);
-    const int ia = tiles[2 * tile] + get_local_id(0);
+    const int ia = tiles[2 * tile] + get_local_id(0) * VEC;  /* first lane's angle */
     const int ir = tiles[2 * tile + 1];
-    const size_t cell = (size_t)ia * N_RANGE + ir;
-    const int active = ir >= window[2 * ia] && ir < window[2 * ia + 1];
 
-    const real_t sn = angle_tab[2 * ia], cs = angle_tab[2 * ia + 1];
+    const vreal sn = VLOAD_R(0, angle_sin + ia), cs = VLOAD_R(0, angle_cos + ia);
+    const vmask active = TO_VMASK(IMASK(ir >= VLOAD_I(0, win_first + ia)) & IMASK(ir < VLOAD_I(0, win_end + ia)));
     const real_t R = range_m[ir];
     const int k0 = base_int[ir];
-    const real_t frac0 = base_frac[ir]
+    const vreal frac0 = base_frac[ir]
         + offset_delay_m(R, sn, cs, src_oy, src_oz, src_ox2, src_q) * samples_per_m;
 #if BASEBAND
     const real_t phase0 = base_phase[ir];
 #endif
-    real_t sr = 0, si = 0, q = 0;
-    int m = 0;
+    vreal sr = (vreal)0, si = (vreal)0, q = (vreal)0, m = (vreal)0;
     for (int n = 0; n < n_chan; ++n) {
-#if CHANNEL_BARRIER
-        /* CPU drivers (PoCL) turn a uniform loop holding a barrier into
-         * work-item loops inside it, which their vectoriser then vectorises
-         * across cells; every work-item reaches it (no early return) */
-        barrier(CLK_LOCAL_MEM_FENCE);
-#endif
         const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2], ox2 = chan[4 * n + 3];
-        const real_t pos = frac0 + offset_delay_m(R, sn, cs, oy, oz, ox2, oq) * samples_per_m;
-        real_t t;
-        const int k = k0 + split_position(pos, &t);
-        const int inside = k - TAPS_BEFORE >= 0 && k + TAPS_AFTER < N_SAMPLES;
-        /* read a clamped tap (always in the buffer), discard it when outside */
-        const int kc = clamp(k, TAPS_BEFORE, N_SAMPLES - 1 - TAPS_AFTER);
-        real_t re, im;
+        const vreal pos = frac0 + offset_delay_m(R, sn, cs, oy, oz, ox2, oq) * samples_per_m;
+        vreal t;
+        const vint k = k0 + split_position(pos, &t);
+        const vmask inside = TO_VMASK(IMASK(k >= TAPS_BEFORE) & IMASK(k < N_SAMPLES - TAPS_AFTER));
+        /* read clamped taps (always inside the buffer), discard them when
+         * outside; min/max with vector bounds rather than clamp(vector,
+         * scalar, scalar), which Oclgrind evaluates wrongly for 16 lanes */
+        const vint kc = min(max(k, (vint)TAPS_BEFORE), (vint)(N_SAMPLES - 1 - TAPS_AFTER));
+        vreal re, im;
         interpolate(data, n * (2 * N_SAMPLES) + 2 * kc, t, &re, &im);
 #if BASEBAND
         {
-            /* sin and cos rather than sincos: no private-memory out
-             * argument, which some implementations and Oclgrind mishandle */
-            const real_t ph = phase0 + carrier_rad_per_sample * pos;
-            const real_t s = sin(ph), c = cos(ph);
-            const real_t r2 = re * c - im * s;
+            const vreal ph = phase0 + carrier_rad_per_sample * pos;
+            const vreal s = sin(ph), c = cos(ph);
+            const vreal r2 = re * c - im * s;
             im = re * s + im * c;
             re = r2;
         }
 #endif
-        const int ok = active && inside && isfinite(re) && isfinite(im);
-        re = ok ? re : (real_t)0;
-        im = ok ? im : (real_t)0;
+        const vmask ok = active & inside & RMASK(isfinite(re)) & RMASK(isfinite(im));
+        re = select((vreal)0, re, ok);
+        im = select((vreal)0, im, ok);
         sr += re;
         si += im;
         q += re * re + im * im;
-        m += ok;
+        m += select((vreal)0, (vreal)1, ok);
     }
-    const real_t inten = sr * sr + si * si;
+    const vreal inten = sr * sr + si * si;
+    const size_t cell = (size_t)ia * N_RANGE + ir;
 #if WANT_INTENSITY
-    out_intensity[cell] = inten;
+    scatter(out_intensity, cell, N_RANGE, inten);
 #endif
 #if WANT_CF
-    out_cf[cell] = (m > 0 && q > (real_t)0) ? inten / ((real_t)m * q) : (real_t)0;
+    scatter(out_cf, cell, N_RANGE, select((vreal)0, inten / (m * q), RMASK(m > (real_t)0) & RMASK(q > (real_t)0)));
 #endif
 #if WANT_SUMS
-    out_s[2 * cell] = sr;
-    out_s[2 * cell + 1] = si;
-    out_q[cell] = q;
-    out_m[cell] = m;
+    scatter(out_s, cell, N_RANGE, sr);
+    scatter(out_s, cell + (size_t)n_angle_padded * N_RANGE, N_RANGE, si);
+    scatter(out_q, cell, N_RANGE, q);
+    scatter_int(out_m, cell, N_RANGE, CONVERT_VINT(m));
 #endif
 }

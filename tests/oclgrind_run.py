@@ -30,8 +30,12 @@ first = get_engine("opencl")
 print("device:", first.label)
 if device_has_fp64(first.device):
     precisions.append("float64")
-for precision in precisions:
-    eng = get_engine("opencl", precision=precision)
+from clbeam.engine.opencl import OpenCLEngine  # noqa: E402
+
+# every precision with the CPU layout (16 lanes), and the GPU layout (1 lane, groups of 8) in float32
+runs = [(p, (16, 1)) for p in precisions] + [("float32", (1, 8)), ("float32", (4, 2))]
+for precision, layout in runs:
+    eng = OpenCLEngine(precision=precision, layout=layout)
     for mode, spec in INTERP_MODES.items():
         if spec.kernel_id < 0:
             continue
@@ -39,4 +43,4 @@ for precision in precisions:
         want = ref.beamform(inp, grid, interp=mode, outputs=("intensity", "cf", "sums"))
         rel = np.linalg.norm(got.intensity - want.intensity) / np.linalg.norm(want.intensity)
         m_equal = np.array_equal(got.m, want.m)
-        print(f"variant {precision} {mode} rel={rel:.2e} m_equal={m_equal} m_range={want.m.min()}-{want.m.max()}")
+        print(f"variant {precision} {layout} {mode} rel={rel:.2e} m_equal={m_equal} m_range={want.m.min()}-{want.m.max()}")

@@ -22,8 +22,11 @@ from .common import BeamformInput, InterpMode, Sums, baseband, carrier_phase, ce
 
 log = logging.getLogger(__name__)
 
-#: work-items per work-group (consecutive angles at one range row); clamped to the device limit
-LOCAL_ANGLE = 64
+#: cells per work-item (vector lanes) and work-items per group, by device type:
+#: CPU drivers vectorise explicit lanes well and want tiny groups; GPUs want
+#: one cell per work-item and full groups (clamped to the device limit)
+CPU_LAYOUT = (16, 1)
+GPU_LAYOUT = (1, 64)
 #: fraction of the device's global memory one tile of outputs may use
 TILE_MEMORY_FRACTION = 0.25
 
@@ -81,10 +84,12 @@ def choose_device(device=None):
 
 
 def kernel_source() -> str:
-    """The beamforming kernel with its header inlined (avoids include paths)."""
+    """The beamforming kernel with its headers inlined (avoids include paths)."""
     root = resources.files("clbeam.kernels")
     src = (root / "beamform.cl").read_text()
-    return src.replace('#include "interp.h"', (root / "interp.h").read_text())
+    for header in ("vector.h", "interp.h"):
+        src = src.replace(f'#include "{header}"', (root / header).read_text())
+    return src
 
 
 def device_has_fp64(dev) -> bool:
@@ -103,11 +108,15 @@ class OpenCLEngine:
         Kernel arithmetic; float64 only on devices with ``cl_khr_fp64``.
     max_tile_cells : int, optional
         Cap on cells per launch (tiles over angle); default from device memory.
+    layout : (int, int), optional
+        Cells per work-item (1, 2, 4, 8 or 16 vector lanes) and work-items per
+        work-group; default by device type (:data:`CPU_LAYOUT`, :data:`GPU_LAYOUT`).
     """
 
     name = "opencl"
 
-    def __init__(self, device=None, precision: str = "float32", max_tile_cells: int | None = None):
+    def __init__(self, device=None, precision: str = "float32", max_tile_cells: int | None = None,
+                 layout: tuple[int, int] | None = None):
         cl = _cl()
         require(precision in ("float32", "float64"), OptionError,
                 f"precision '{precision}' is unknown, expected 'float32' or 'float64'")
@@ -123,7 +132,10 @@ class OpenCLEngine:
         self._buffers: dict = {}
         self._lock = threading.Lock()
         self.max_tile_cells = max_tile_cells
-        self.channel_barrier = bool(self.device.type & cl.device_type.CPU)
+        is_cpu = bool(self.device.type & cl.device_type.CPU)
+        self.vec, self.local = layout or (CPU_LAYOUT if is_cpu else GPU_LAYOUT)
+        require(self.vec in (1, 2, 4, 8, 16) and self.local >= 1, OptionError,
+                f"layout must be (lanes in 1, 2, 4, 8, 16; work-items >= 1), got {layout!r}")
         log.info("OpenCL device: %s, %s", device_label(self.device), precision)
 
     @property
@@ -140,7 +152,7 @@ class OpenCLEngine:
 
     # -- program cache ----------------------------------------------------
     def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int):
-        key = (mode.name, tuple(sorted(outs)), n_samples, n_range)
+        key = (mode.name, tuple(sorted(outs)), n_samples, n_range, self.vec)
         k = self._kernels.get(key)
         if k is None:
             cl = _cl()
@@ -155,12 +167,14 @@ class OpenCLEngine:
                 f"-DWANT_INTENSITY={int('intensity' in outs)}",
                 f"-DWANT_CF={int('cf' in outs)}",
                 f"-DWANT_SUMS={int('sums' in outs)}",
-                f"-DCHANNEL_BARRIER={int(self.channel_barrier)}",
+                f"-DVEC={self.vec}",
             ]
             try:
                 prg = cl.Program(self.ctx, kernel_source()).build(options=opts)
             except cl.Error as exc:
-                raise DeviceError(f"kernel build failed on {self.label}: {str(exc).splitlines()[0]}") from None
+                errors = [ln for ln in str(exc).splitlines() if "error" in ln.lower()]
+                log.debug("kernel build log: %s", exc)
+                raise DeviceError(f"kernel build failed on {self.label}: {(errors or [str(exc)])[-1].strip()}") from None
             k = prg.beamform
             self._kernels[key] = k
         return k
@@ -249,8 +263,9 @@ class OpenCLEngine:
         itemsize = np.dtype(real).itemsize
         per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + 3 * ("sums" in outs)) + 4 * ("sums" in outs))
         wg_max = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device)
-        la = max(1, min(LOCAL_ANGLE, wg_max))
-        rows = max(la, self._tile_angles(grid, per_cell) // la * la)
+        local = max(1, min(self.local, wg_max))
+        lanes = self.vec * local  # angles per tile
+        rows = max(lanes, self._tile_angles(grid, per_cell) // lanes * lanes)
         res = Sums()
         full = {}
         if "intensity" in outs:
@@ -258,35 +273,44 @@ class OpenCLEngine:
         if "cf" in outs:
             full["cf"] = res.cf = np.empty((n_a, n_r), dtype=real)
         if "sums" in outs:
-            full["s"] = np.empty((n_a, n_r, 2), dtype=real)
+            full["s"] = np.empty((2, n_a, n_r), dtype=real)
             full["q"] = res.q = np.empty((n_a, n_r), dtype=real)
             full["m"] = res.m = np.empty((n_a, n_r), dtype=np.int32)
-        sizes = {"intensity": itemsize, "cf": itemsize, "s": 2 * itemsize, "q": itemsize, "m": 4}
-        bufs = {name: self._buffer("out_" + name, rows * n_r * sizes[name] if name in full else 16) for name in sizes}
+        planes = {"intensity": 1, "cf": 1, "s": 2, "q": 1, "m": 1}
+        bufs = {name: self._buffer("out_" + name, planes[name] * rows * n_r * (4 if name == "m" else itemsize)
+                                   if name in full else 16) for name in planes}
         for a0 in range(0, n_a, rows):
             na = min(rows, n_a - a0)
-            na_pad = -(-na // la) * la
-            tab = np.zeros((na_pad, 2), dtype=real)
-            tab[:na] = angle_tab[a0:a0 + na]
+            na_pad = -(-na // lanes) * lanes
+            tab = np.zeros((4, na_pad), dtype=real)
+            tab[0, :na], tab[1, :na] = angle_tab[a0:a0 + na, 0], angle_tab[a0:a0 + na, 1]
             win = np.zeros((na_pad, 2), dtype=np.int32)
             win[:na] = window[a0:a0 + na]
-            tiles = launch_tiles(win, la)
+            tiles = launch_tiles(win, lanes)
             for name, arr in full.items():
-                cl.enqueue_fill_buffer(self.queue, bufs[name], np.zeros(1, dtype=arr.dtype), 0, na_pad * n_r * sizes[name])
+                cl.enqueue_fill_buffer(self.queue, bufs[name], np.zeros(1, dtype=arr.dtype), 0,
+                                       planes[name] * na_pad * n_r * arr.itemsize)
             if len(tiles):
-                kernel(self.queue, (len(tiles) * la,), (la,),
+                kernel(self.queue, (len(tiles) * local,), (local,),
                        b_data, b_chan, np.int32(n_chan), self._upload("tiles", tiles),
-                       self._upload("angle", tab), self._upload("window", win),
+                       self._upload("angle_sin", tab[0]), self._upload("angle_cos", tab[1]),
+                       self._upload("win_first", np.ascontiguousarray(win[:, 0])),
+                       self._upload("win_end", np.ascontiguousarray(win[:, 1])),
                        b_range, b_bint, b_bfrac, b_bphase,
                        real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
                        real(inp.samples_per_m),
                        real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
-                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"])
+                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"], np.int32(na_pad))
             for name, arr in full.items():
-                cl.enqueue_copy(self.queue, arr[a0:a0 + na], bufs[name], is_blocking=True)
+                if name == "s":
+                    host = np.empty((2, na_pad, n_r), dtype=real)
+                    cl.enqueue_copy(self.queue, host, bufs[name], is_blocking=True)
+                    arr[:, a0:a0 + na] = host[:, :na]
+                else:
+                    cl.enqueue_copy(self.queue, arr[a0:a0 + na], bufs[name], is_blocking=True)
         self.queue.finish()
         if "sums" in outs:
-            res.s = full["s"][..., 0] + 1j * full["s"][..., 1]
+            res.s = full["s"][0] + 1j * full["s"][1]
         return res
 
 
