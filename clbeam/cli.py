@@ -57,6 +57,10 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--precision", default="float32", choices=["float32", "float64"], help="kernel arithmetic (default float32)")
     g.add_argument("--sound-speed", type=float, default=None, metavar="M/S", help="override the file's sound speed (m/s)")
     g.add_argument("--threshold", type=float, default=0.25, help="coherence-peak threshold on smoothed CF (default 0.25)")
+    g.add_argument("--seabed-band", type=float, nargs=2, default=None, metavar=("ABOVE", "BELOW"),
+                   help="compute only cells from ABOVE m above to BELOW m below the seabed (e.g. 5 40)")
+    g.add_argument("--seabed-depth", type=float, default=None, metavar="M",
+                   help="seabed depth below the transducers for --seabed-band (default: picked per ping)")
 
 
 def options_from_args(args):
@@ -65,7 +69,9 @@ def options_from_args(args):
 
     outputs = tuple(s.strip() for s in args.outputs.split(",") if s.strip())
     return ImagingOptions(interp=args.interp, upsample=args.upsample, outputs=outputs, threshold=args.threshold,
-                          sound_speed_m_s=args.sound_speed, precision=args.precision)
+                          sound_speed_m_s=args.sound_speed, precision=args.precision,
+                          seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
+                          seabed_depth_m=args.seabed_depth)
 
 
 def grid_from_args(args, max_range_default: float):

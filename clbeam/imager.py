@@ -48,6 +48,12 @@ class ImagingOptions:
         Override of the file's sound speed (m/s).
     precision : str
         ``"float32"`` or ``"float64"`` kernel arithmetic (OpenCL backend).
+    seabed_band_m : (float, float) or None
+        Compute only cells from this far above to this far below the seabed
+        (m), e.g. ``(5, 40)``; ``None`` computes the whole grid.
+    seabed_depth_m : float or None
+        Seabed depth below the grid centre (m) for the band; ``None`` picks it
+        per ping from the first strong return at nadir.
     """
 
     interp: str = "linear"
@@ -56,6 +62,8 @@ class ImagingOptions:
     threshold: float = DEFAULT_THRESHOLD
     sound_speed_m_s: float | None = None
     precision: str = "float32"
+    seabed_band_m: tuple | None = None
+    seabed_depth_m: float | None = None
 
     def __post_init__(self):
         interp_mode(self.interp)
@@ -63,6 +71,11 @@ class ImagingOptions:
         require(int(self.upsample) == self.upsample and 1 <= self.upsample <= 16, OptionError,
                 f"upsample must be an integer 1-16, got {self.upsample!r}")
         require(0 <= self.threshold <= 1, OptionError, f"threshold must be within 0-1, got {self.threshold!r}")
+        if self.seabed_band_m is not None:
+            band = tuple(float(v) for v in self.seabed_band_m)
+            require(len(band) == 2 and all(np.isfinite(band)) and band[0] + band[1] > 0, OptionError,
+                    f"seabed band must be (above, below) metres with a positive width, got {self.seabed_band_m!r}")
+            object.__setattr__(self, "seabed_band_m", band)
         if self.sound_speed_m_s is not None:
             require(1300 <= self.sound_speed_m_s <= 1700, OptionError,
                     f"sound speed must be within 1300-1700 m/s, got {self.sound_speed_m_s!r}")
@@ -197,6 +210,11 @@ class Imager:
             inp = dataclasses.replace(inp, data=inp.data * np.ldexp(1.0, -scale_exp))
         if inp.n_channels == 0:
             log.warning("ping %d: no usable channel; the image is empty", ping.index)
+        if range_window_m is None and self.options.seabed_band_m is not None:
+            depth = self.options.seabed_depth_m
+            if depth is None:
+                depth = pick_seabed_depth_m(inp)
+            range_window_m = seabed_window_m(self.grid, depth, self.options.seabed_band_m)
         t0 = time.perf_counter()
         outs = set(self.options.outputs)
         sums = self.engine.beamform(inp, self.grid, interp=self.options.interp, outputs=outs | {"intensity"} if "cf" in outs else outs,
@@ -241,6 +259,32 @@ class Imager:
                     row["heading_deg"] = ping.heading_deg
             rows.append(row)
         return rows
+
+
+def pick_seabed_depth_m(inp: BeamformInput, *, below_peak_db: float = 20.0) -> float:
+    """Seabed depth below the grid centre (m) from the first strong return.
+
+    The channels' envelopes are summed; the first sample within
+    ``below_peak_db`` of the strongest is the nadir seabed echo, at two-way
+    time ``t`` and so depth ``c t / 2`` (the array spans metres, the water
+    hundreds: the offsets' effect is below a range cell).
+    """
+    env = np.nansum(np.abs(inp.data), axis=0)
+    require(env.size > 0 and np.max(env) > 0, OptionError,
+            "cannot pick the seabed: the ping has no signal; give the seabed depth")
+    k = int(np.argmax(env >= np.max(env) * 10 ** (-below_peak_db / 20)))
+    return 0.5 * inp.sound_speed_m_s * (inp.t0_s + k / inp.sample_rate_hz)
+
+
+def seabed_window_m(grid: PolarGrid, depth_m: float, band_m: tuple) -> np.ndarray:
+    """Per-angle range interval ``(n_angle, 2)`` (m) covering a flat seabed at
+    ``depth_m`` below the grid centre, from ``band_m[0]`` above to
+    ``band_m[1]`` below it: ``R = z / cos(theta)``."""
+    above, below = band_m
+    cos_t = np.cos(np.deg2rad(grid.angles_deg))
+    lo = np.maximum(depth_m - above, 0.0) / cos_t
+    hi = (depth_m + below) / cos_t
+    return np.stack([lo, hi], axis=1)
 
 
 def amplitude_exponent(data: np.ndarray) -> int:

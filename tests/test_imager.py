@@ -111,3 +111,22 @@ def test_peaks_table_has_the_scatterer_with_its_position():
     assert best["y_m"] == pytest.approx(R0 * np.sin(np.deg2rad(A0)), abs=0.2)
     assert best["z_m"] == pytest.approx(R0 * np.cos(np.deg2rad(A0)), abs=0.2)
     assert best["cf"] > 0.9
+
+
+def test_seabed_band_computes_only_the_band_and_keeps_its_values():
+    depth = 60.0
+    grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=1, max_range_m=160, angles_deg=(-60, 60))
+    # a flat row of scatterers at the seabed depth, strongest echo first in time at nadir
+    ys = np.arange(-80, 81, 7.0)
+    ping = point_ping([(0, y, depth) for y in ys], record_s=0.25)
+    full = Imager(grid, ImagingOptions(interp="cubic")).image(ping)
+    band = Imager(grid, ImagingOptions(interp="cubic", seabed_band_m=(5, 10))).image(ping)
+    lo = (depth - 5) / np.cos(np.deg2rad(grid.angles_deg))[:, None]
+    hi = (depth + 10) / np.cos(np.deg2rad(grid.angles_deg))[:, None]
+    r = grid.ranges_m[None, :]
+    inside = (r >= lo + 0.5) & (r <= hi - 0.5)  # the picked depth may differ by a range cell
+    outside = (r < lo - 0.5) | (r > hi + 0.5)
+    np.testing.assert_array_equal(band.intensity[inside], full.intensity[inside])
+    np.testing.assert_array_equal(band.cf[inside], full.cf[inside])
+    assert np.all(band.intensity[outside] == 0)
+    assert outside.mean() > 0.5  # most of the grid was skipped
