@@ -25,6 +25,9 @@
  *              at kilometre ranges),
  *   d(o) = |R u - o| - R = (|o|^2 - 2 R u.o) / (|R u - o| + R)
  * which has no cancellation at any range (cells lie in the plane x = 0).
+ * Beyond fresnel_min_range_m (chosen by the host so the truncation error is
+ * below 1e-5 sample) the element offsets use the expansion
+ *   d(o) = -p + (q - p^2) / (2 R) + p (q - p^2) / (2 R^2),  p = u.o, q = |o|^2.
  */
 #if REAL_IS_DOUBLE
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
@@ -33,6 +36,9 @@ typedef REAL_T real_t;
 
 #include "vector.h"
 #include "interp.h"
+
+/* u.o: the plane-wave part of an offset's delay */
+#define pp_(sn, cs, oy, oz) ((sn) * (oy) + (cs) * (oz))
 
 inline vreal offset_delay_m(real_t R, vreal sn, vreal cs, real_t oy, real_t oz, real_t ox2, real_t q)
 {
@@ -59,6 +65,7 @@ __kernel void beamform(
     __global const real_t *restrict base_phase,/* [N_RANGE] carrier phase of base_int (rad), BASEBAND */
     const real_t src_oy, const real_t src_oz, const real_t src_ox2, const real_t src_q,
     const real_t samples_per_m,                /* fs / c */
+    const real_t fresnel_min_range_m,          /* ranges from which the expansion is accurate */
     const real_t carrier_rad_per_sample,       /* 2 pi fc / fs, BASEBAND */
     __global real_t *restrict out_intensity,   /* [n_angle_padded][N_RANGE] */
     __global real_t *restrict out_cf,
@@ -74,6 +81,8 @@ __kernel void beamform(
     const vreal sn = VLOAD_R(0, angle_sin + ia), cs = VLOAD_R(0, angle_cos + ia);
     const vmask active = TO_VMASK(IMASK(ir >= VLOAD_I(0, win_first + ia)) & IMASK(ir < VLOAD_I(0, win_end + ia)));
     const real_t R = range_m[ir];
+    const int far = R >= fresnel_min_range_m;
+    const real_t inv2R = (real_t)0.5 / R;
     const int k0 = base_int[ir];
     const vreal frac0 = base_frac[ir]
         + offset_delay_m(R, sn, cs, src_oy, src_oz, src_ox2, src_q) * samples_per_m;
@@ -83,7 +92,12 @@ __kernel void beamform(
     vreal sr = (vreal)0, si = (vreal)0, q = (vreal)0, m = (vreal)0;
     for (int n = 0; n < n_chan; ++n) {
         const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2], ox2 = chan[4 * n + 3];
-        const vreal pos = frac0 + offset_delay_m(R, sn, cs, oy, oz, ox2, oq) * samples_per_m;
+        /* far cells (a uniform branch: R is one per work-item) use the
+         * Fresnel expansion of d(o) to third order, no sqrt or division */
+        const vreal pos = frac0 + samples_per_m * (far
+            ? (oq - pp_(sn, cs, oy, oz) * pp_(sn, cs, oy, oz)) * inv2R
+                  * ((real_t)1 + (real_t)2 * inv2R * pp_(sn, cs, oy, oz)) - pp_(sn, cs, oy, oz)
+            : offset_delay_m(R, sn, cs, oy, oz, ox2, oq));
         vreal t;
         const vint k = k0 + split_position(pos, &t);
         const vmask inside = TO_VMASK(IMASK(k >= TAPS_BEFORE) & IMASK(k < N_SAMPLES - TAPS_AFTER));
@@ -92,7 +106,7 @@ __kernel void beamform(
          * scalar, scalar), which Oclgrind evaluates wrongly for 16 lanes */
         const vint kc = min(max(k, (vint)TAPS_BEFORE), (vint)(N_SAMPLES - 1 - TAPS_AFTER));
         vreal re, im;
-        interpolate(data, n * (2 * N_SAMPLES) + 2 * kc, t, &re, &im);
+        interpolate(data, n * (2 * N_SAMPLES) + 2 * (kc - TAPS_BEFORE), t, &re, &im);
 #if BASEBAND
         {
             const vreal ph = phase0 + carrier_rad_per_sample * pos;

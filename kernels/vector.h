@@ -48,22 +48,6 @@ typedef CAT(int, VEC) vmask;
 #define CONVERT_VREAL_I(x) CAT(CAT(convert_, REAL_T), VEC)(x)
 #endif
 
-/* data[idx + off] for every lane (a gather: one load per lane) */
-inline vreal gather(__global const real_t *restrict data, vint idx, int off)
-{
-#if VEC == 1
-    return data[idx + off];
-#else
-    int ib[VEC];
-    real_t v[VEC];
-    CAT(vstore, VEC)(idx, 0, ib);
-#pragma unroll
-    for (int l = 0; l < VEC; ++l)
-        v[l] = data[ib[l] + off];
-    return VLOAD_R(0, v);
-#endif
-}
-
 /* out[first + l * stride] = v[l] for every lane */
 inline void scatter(__global real_t *restrict out, size_t first, size_t stride, vreal v)
 {

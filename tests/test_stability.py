@@ -125,3 +125,23 @@ def test_opencl_equals_reference_on_random_geometry(cl_engine, ref_engine, n_ch,
     if mode != "nearest" and ref.intensity[same].any():
         assert error_db(got.intensity[same], ref.intensity[same]) < -60
     assert np.isfinite(got.cf).all() and got.cf.max() <= 1 + 1e-5 and got.cf.min() >= 0
+
+
+def test_fresnel_expansion_range_meets_its_tolerance():
+    from clbeam.engine.opencl import FRESNEL_TOLERANCE_SAMPLES, fresnel_min_range_m
+
+    o = np.zeros((64, 3))
+    o[:, 1] = np.linspace(-1.764, 1.764, 64)
+    o[:, 2] = 0.1
+    spm = FS / C
+    r0 = fresnel_min_range_m(o, spm)
+    # independent check at finer angles, at the switch range and 4x beyond it
+    th = np.deg2rad(np.linspace(-90, 90, 2001))[:, None]
+    for r in (r0, 4 * r0):
+        exact = np.sqrt((r * np.sin(th) - o[:, 1]) ** 2 + (r * np.cos(th) - o[:, 2]) ** 2) - r
+        p = np.sin(th) * o[:, 1] + np.cos(th) * o[:, 2]
+        q = o[:, 1] ** 2 + o[:, 2] ** 2
+        approx = -p + (q - p * p) / (2 * r) * (1 + p / r)
+        assert np.max(np.abs(exact - approx)) * spm < 1.2 * FRESNEL_TOLERANCE_SAMPLES
+    # the truncation error falls as R^-3: at the switch |o|^4 / R^3 is of the tolerance's order
+    assert 50 < r0 < 400

@@ -131,7 +131,11 @@ class OpenCLEngine:
         self._kernels: dict = {}
         self._buffers: dict = {}
         self._lock = threading.Lock()
+        self._fresnel_key = None
+        self._fresnel_value = float("inf")
         self.max_tile_cells = max_tile_cells
+        # the expansion serves float32 speed; float64 is the accuracy mode: exact distances
+        self.fresnel = precision == "float32"
         is_cpu = bool(self.device.type & cl.device_type.CPU)
         self.vec, self.local = layout or (CPU_LAYOUT if is_cpu else GPU_LAYOUT)
         require(self.vec in (1, 2, 4, 8, 16) and self.local >= 1, OptionError,
@@ -149,6 +153,13 @@ class OpenCLEngine:
             for buf in self._buffers.values():
                 buf.release()
             self._buffers.clear()
+
+    def _fresnel_range(self, offsets_m: np.ndarray, samples_per_m: float) -> float:
+        key = (np.round(offsets_m, 6).tobytes(), round(samples_per_m, 9), self.fresnel)
+        if self._fresnel_key != key:
+            self._fresnel_key = key
+            self._fresnel_value = fresnel_min_range_m(offsets_m, samples_per_m, self.fresnel)
+        return self._fresnel_value
 
     # -- program cache ----------------------------------------------------
     def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int):
@@ -298,7 +309,7 @@ class OpenCLEngine:
                        self._upload("win_end", np.ascontiguousarray(win[:, 1])),
                        b_range, b_bint, b_bfrac, b_bphase,
                        real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
-                       real(inp.samples_per_m),
+                       real(inp.samples_per_m), real(self._fresnel_range(o, inp.samples_per_m)),
                        real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
                        bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"], np.int32(na_pad))
             for name, arr in full.items():
@@ -331,3 +342,33 @@ def launch_tiles(window: np.ndarray, local_angles: int) -> np.ndarray:
     first = np.repeat(np.arange(n) * local_angles, counts)
     rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi) if b > a] or [np.zeros(0, dtype=np.int64)])
     return np.stack([first, rows], axis=1).astype(np.int32)
+
+
+#: truncation error allowed for the Fresnel expansion of the element delays (samples)
+FRESNEL_TOLERANCE_SAMPLES = 1e-5
+
+
+def fresnel_min_range_m(offsets_m: np.ndarray, samples_per_m: float, enabled: bool = True) -> float:
+    """Smallest range (m) from which the third-order expansion of every
+    element's ``|R u - o| - R`` is within :data:`FRESNEL_TOLERANCE_SAMPLES`.
+
+    The error is measured, not bounded: for ranges on a geometric ladder the
+    exact and expanded delays of all elements are compared over all angles
+    (it falls like ``|o|^4 / R^3``); ``inf`` disables the expansion.
+    """
+    if not enabled or len(offsets_m) == 0:
+        return float("inf")
+    o = np.asarray(offsets_m, dtype=np.float64)
+    th = np.deg2rad(np.linspace(-90, 90, 181))
+    u = np.stack([np.sin(th), np.cos(th)], axis=1)
+    p = u @ o[:, 1:3].T                        # (angle, element)
+    q = np.sum(o * o, axis=1)[None, :]
+    tol_m = FRESNEL_TOLERANCE_SAMPLES / samples_per_m
+    reach = max(float(np.sqrt(q.max())), 1e-3)
+    for r in reach * 2.0 ** np.arange(1, 40, 0.25):
+        exact = np.sqrt((r * u[:, :1] - o[None, :, 1]) ** 2 + (r * u[:, 1:] - o[None, :, 2]) ** 2
+                        + o[None, :, 0] ** 2) - r
+        approx = -p + (q - p * p) / (2 * r) * (1 + p / r)
+        if np.max(np.abs(exact - approx)) < tol_m:
+            return float(r)
+    return float("inf")

@@ -233,30 +233,38 @@ class _Model:
         r = (self.y - self.x * self.predict(kinds, p)) / self.scale
         return np.concatenate([r.real, r.imag])
 
-    def fit_one(self, kinds, params_list, i, lower, upper):
-        """Fit echo ``i`` alone, the others held at ``params_list``; returns all parameters and chi-square."""
-        others = sum((self.echo(k, q) for j, (k, q) in enumerate(zip(kinds, params_list)) if j != i),
-                     np.zeros(self.f.size, complex))
-        target = self.y - self.x * others
-        start = np.clip(params_list[i], lower + 1e-12 * (upper - lower), upper - 1e-12 * (upper - lower))
+    def fit(self, kinds, params_list, bounds, free=None):
+        """Fit the echoes in ``free`` (default all), the others held at ``params_list``.
 
-        def resid(q):
-            r = (target - self.x * self.echo(kinds[i], q)) / self.scale
+        Returns the flat parameter vector, the chi-square and the covariance
+        (``(J^T J)^-1`` of the whitened residuals; NaN rows and columns for
+        held echoes).
+        """
+        free = set(range(len(kinds))) if free is None else set(free)
+        held = [self.echo(k, q) for j, (k, q) in enumerate(zip(kinds, params_list)) if j not in free]
+        target = self.y - self.x * sum(held, np.zeros(self.f.size, complex))
+        order = [j for j in range(len(kinds)) if j in free]
+        sub = [kinds[j] for j in order]
+        start = np.concatenate([params_list[j] for j in order])
+        lower = np.concatenate([bounds[j][0] for j in order])
+        upper = np.concatenate([bounds[j][1] for j in order])
+        start = np.clip(start, lower + 1e-9 * (upper - lower), upper - 1e-9 * (upper - lower))
+
+        def resid(p):
+            r = (target - self.x * self.predict(sub, p)) / self.scale
             return np.concatenate([r.real, r.imag])
 
         res = least_squares(resid, start, bounds=(lower, upper), x_scale="jac", method="trf",
                             xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=1000)
-        out = [np.asarray(q, float) for q in params_list]
-        out[i] = res.x
-        return out, float(2 * res.cost)
-
-    def fit(self, kinds, start, lower, upper):
-        start = np.clip(start, lower + 1e-12 * (upper - lower), upper - 1e-12 * (upper - lower))
-        res = least_squares(lambda p: self.residual(kinds, p), start, bounds=(lower, upper),
-                            x_scale="jac", method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
-        jac = res.jac
-        cov = np.linalg.pinv(jac.T @ jac)
-        return res.x, float(2 * res.cost), cov
+        cov_free = np.linalg.pinv(res.jac.T @ res.jac)
+        sizes = [_PARAMS[k] for k in kinds]
+        offsets = np.cumsum([0] + sizes)
+        flat = np.concatenate([np.asarray(q, float) for q in params_list])
+        cov = np.full((flat.size, flat.size), np.nan)
+        index = np.concatenate([np.arange(offsets[j], offsets[j + 1]) for j in order])
+        flat[index] = res.x
+        cov[np.ix_(index, index)] = cov_free
+        return flat, float(2 * res.cost), cov
 
 
 def _bounds(kind, q, band_s):
@@ -414,9 +422,9 @@ def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float
             return float(stats.chi2.sf(delta, 1))
         return float(stats.f.sf(delta, 1, noise_dof))
 
-    def fit(kinds, params_list):
-        lows, highs = zip(*(_bounds(k, q, exclusion_s / 2) for k, q in zip(kinds, params_list)))
-        p, chi2, cov = model.fit(kinds, np.concatenate(params_list), np.concatenate(lows), np.concatenate(highs))
+    def fit(kinds, params_list, free=None):
+        bounds = [_bounds(k, q, exclusion_s / 2) for k, q in zip(kinds, params_list)]
+        p, chi2, cov = model.fit(kinds, [np.asarray(q, float) for q in params_list], bounds, free)
         return _State(list(kinds), p, chi2, cov)
 
     # -- detection and the smooth fit ------------------------------------
@@ -461,11 +469,7 @@ def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float
     # -- seafloor reflection model ------------------------------------------
     def with_seafloor(kind, q0):
         """Echo 0 refitted with another reflection model, the deeper echoes held."""
-        kinds = [kind] + base.kinds[1:]
-        plist = [np.asarray(q0, float)] + base_q[1:]
-        lo, hi = _bounds(kind, plist[0], exclusion_s / 2)
-        plist, chi2 = model.fit_one(kinds, plist, 0, lo, hi)
-        return _State(kinds, np.concatenate(plist), chi2, None)
+        return fit([kind] + base.kinds[1:], [np.asarray(q0, float)] + base_q[1:], free={0})
 
     verdict = {"smooth": p_adequate(base.chi2, base.params.size) > significance}
     tau0, v0 = base_q[0][0], base_q[0][1]
@@ -508,7 +512,13 @@ def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float
             seafloor = min(adequate or candidates, key=lambda s: s.chi2)
 
     # -- deeper echoes: is each one's spectrum linear in dB? ------------------
-    final = fit(seafloor.kinds, model.split(seafloor.kinds, seafloor.params))
+    # joint refit; a seafloor read with a transitional bed is held (its parameters are not reported)
+    deep = set(range(1, n_echo))
+    hold_seafloor = seafloor.kinds[0] in ("T0", "GT0")
+    final = fit(seafloor.kinds, model.split(seafloor.kinds, seafloor.params), deep if hold_seafloor else None)
+    if hold_seafloor:
+        final.cov[:_PARAMS[seafloor.kinds[0]], :_PARAMS[seafloor.kinds[0]]] = \
+            seafloor.cov[:_PARAMS[seafloor.kinds[0]], :_PARAMS[seafloor.kinds[0]]]
     fq = model.split(final.kinds, final.params)
     flagged = set()
     for i in range(1, n_echo):
@@ -516,10 +526,16 @@ def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float
         kinds[i] = "DG"
         qs = [np.array(q, float) for q in fq]
         qs[i] = np.concatenate([qs[i], [0.0]])
-        lo, hi = _bounds("DG", qs[i], exclusion_s / 2)
-        _, chi2_dg = model.fit_one(kinds, qs, i, lo, hi)
-        if p_extra(final.chi2, chi2_dg) < significance:
+        if p_extra(final.chi2, fit(kinds, qs, free={i}).chi2) < significance:
             flagged.add(i)
+    if flagged:   # refit with the extra f^2 term on those echoes: their f -> 0 amplitude is then sound for stripping
+        kinds = ["DG" if i in flagged else k for i, k in enumerate(final.kinds)]
+        qs = [np.concatenate([q, [0.0]]) if i in flagged else np.array(q, float) for i, q in enumerate(fq)]
+        seafloor_cov = final.cov[:_PARAMS[kinds[0]], :_PARAMS[kinds[0]]].copy()
+        final = fit(kinds, qs, deep if hold_seafloor else None)
+        if hold_seafloor:
+            final.cov[:_PARAMS[kinds[0]], :_PARAMS[kinds[0]]] = seafloor_cov
+        fq = model.split(final.kinds, final.params)
 
     # -- estimates ------------------------------------------------------------
     offsets = np.cumsum([0] + [_PARAMS[k] for k in final.kinds])
@@ -556,6 +572,8 @@ def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float
                                                f"(rough or graded interface): its reflection and the attenuation "
                                                f"above it are not separable")))
             stripping *= 1 - float(q[1] / stripping) ** 2
+            stripped_note = (f"approximate: the transmission through interface {i} uses the low-frequency limit "
+                             f"of its frequency-dependent reflection")
             continue
         refl = float(q[1] / stripping)
         echoes.append(EchoEstimate(i, tau, tau_std, refl, float(std[o + 1] / stripping), "smooth",
