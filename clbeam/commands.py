@@ -1,8 +1,111 @@
-"""Subcommands that live beside their modules, registered with the parser.
+"""Subcommands beyond image/peaks/devices: simulate, demo, bench, forward.
 
-Each registrar is ``register(subparsers, add_common_options)``.
+Each registrar is ``register(subparsers, add_common_options)``; the CLI calls
+them all when it builds its parser.
 """
 
 from __future__ import annotations
 
-REGISTRARS: list = []
+import sys
+import time
+
+
+def _say(args):
+    return (lambda msg: None) if args.quiet else (lambda msg: print(f"  {msg} …", file=sys.stderr, flush=True))
+
+
+def cmd_simulate(args) -> int:
+    from .simulate import load_scene, simulate
+    from .ping import write_ping_file
+
+    scene = load_scene(args.scene, pings=args.pings, max_range_m=args.max_range)
+    t0 = time.perf_counter()
+    ds = simulate(scene, seed=args.seed, progress=not args.quiet and sys.stderr.isatty())
+    write_ping_file(ds, args.output)
+    if not args.quiet:
+        print(f"simulated {ds.sizes['ping']} ping(s) of '{scene.name}' ({ds.sizes['channel']} channels x "
+              f"{ds.sizes['sample']} samples) in {time.perf_counter() - t0:.1f} s -> {args.output}")
+    return 0
+
+
+def register_simulate(sub, common) -> None:
+    sp = sub.add_parser("simulate", help="simulate a scene's pings into a ping file (SPEC §7)")
+    sp.add_argument("-o", "--output", required=True, metavar="PINGS.nc", help="ping file to write (.nc or .zarr)")
+    sp.add_argument("--scene", default="line1", metavar="NAME|FILE",
+                    help="built-in scene (line1, line4, point) or a TOML file (default line1)")
+    sp.add_argument("--pings", type=int, default=None, help="number of pings (default: the scene's)")
+    sp.add_argument("--max-range", type=float, default=None, metavar="M", help="largest recorded slant range (m)")
+    sp.add_argument("--seed", type=int, default=0, help="random seed of seabed and noise (default 0)")
+    common(sp)
+    sp.set_defaults(func=cmd_simulate)
+
+
+def cmd_demo(args) -> int:
+    from .demo import run_demo, summary_lines
+
+    t0 = time.perf_counter()
+    if not args.quiet:
+        print(f"clbeam demo: Holland et al. (2024) Line 1 -> {args.output}/", flush=True)
+    res = run_demo(args.output, pings=args.pings, scene=args.scene, interp=args.interp, device=args.device,
+                   backend=args.backend, progress=_say(args))
+    if not args.quiet:
+        print("\n".join(summary_lines(res)))
+        print(f"done in {time.perf_counter() - t0:.1f} s; open {args.output}/ping000.png")
+    return 0
+
+
+def register_demo(sub, common) -> None:
+    from .engine import INTERP_MODES
+
+    sp = sub.add_parser("demo", help="simulate the paper's Line 1, image it, detect the pipelines, draw figures")
+    sp.add_argument("-o", "--output", default="clbeam-demo", metavar="DIR", help="output folder (default clbeam-demo)")
+    sp.add_argument("--pings", type=int, default=3, help="pings to simulate (default 3)")
+    sp.add_argument("--scene", default="line1", help="scene (default line1)")
+    sp.add_argument("--interp", default="linear", choices=list(INTERP_MODES), help="interpolation mode")
+    sp.add_argument("--backend", default="opencl", choices=["opencl", "reference"])
+    sp.add_argument("--device", default=None, help="OpenCL device: index or name substring")
+    common(sp)
+    sp.set_defaults(func=cmd_demo)
+
+
+def cmd_bench(args) -> int:
+    from .bench import run_benchmark, write_report, markdown_table
+    from .simulate import load_scene, simulate
+    from .ping import PingFile, write_ping_file
+
+    say = _say(args)
+    say(f"simulating one ping of '{args.scene}'")
+    ds = simulate(load_scene(args.scene, pings=1, max_range_m=args.max_range))
+    from pathlib import Path
+
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    with PingFile(write_ping_file(ds, out / "bench-ping.nc")) as f:
+        ping = f.ping(0)
+    res = run_benchmark(ping, repeats=args.repeats, progress=say)
+    paths = write_report(res, out)
+    if not args.quiet:
+        print(markdown_table(res))
+        print(f"table -> {paths['markdown']}, {paths['csv']}; plot -> {paths['plot']}")
+    return 0
+
+
+def register_bench(sub, common) -> None:
+    sp = sub.add_parser("bench", help="run time against error of every interpolation mode; table and Pareto plot")
+    sp.add_argument("-o", "--output", default="clbeam-bench", metavar="DIR", help="output folder (default clbeam-bench)")
+    sp.add_argument("--scene", default="line4", help="scene to image (default line4: a pipe at 920 m)")
+    sp.add_argument("--max-range", type=float, default=1100.0, metavar="M", help="record range (m, default 1100)")
+    sp.add_argument("--repeats", type=int, default=3, help="timed runs per mode, best kept (default 3)")
+    common(sp)
+    sp.set_defaults(func=cmd_bench)
+
+
+def register_forward(sub, common) -> None:
+    try:
+        from .forward.cli import add_parser
+    except ImportError:  # the forward-model command is optional
+        return
+    add_parser(sub)
+
+
+REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward]

@@ -53,7 +53,7 @@ def image_extent(grid: PolarGrid, centre_yz_m) -> tuple[float, float, float, flo
 
 
 def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m=None, title: str = "",
-                     zoom: tuple | None = None, dynamic_range_db: float = 60.0, pixel_m: float | None = None):
+                     zoom: tuple | None = None, dynamic_range_db: float = 45.0, pixel_m: float | None = None):
     """Three panels like Holland et al. Fig. 4: intensity (dB), coherence
     factor and coherence peaks, with the seabed line and known targets.
 
@@ -80,11 +80,14 @@ def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m
     ys, zs = np.arange(y0, y1, step), np.arange(z0, z1, step)
     inten = img.intensity if img.intensity is not None else np.abs(img.sums.s) ** 2
     db = 10 * np.log10(np.maximum(inten, inten.max() * 1e-30) / inten.max())
+    # the nadir specular echo dominates the maximum: scale to the image's bright tail instead
+    computed = db[inten > 0]
+    top = float(np.percentile(computed, 99.95)) if computed.size else 0.0
 
     fig, axes = plt.subplots(3, 1, figsize=(11, 11), dpi=110, constrained_layout=True)
     ax = axes[0]
     im = ax.imshow(polar_to_raster(db, grid, c, ys, zs), extent=(ys[0], ys[-1], zs[-1], zs[0]), aspect="auto",
-                   cmap="viridis", vmin=-dynamic_range_db, vmax=0, interpolation="nearest")
+                   cmap="viridis", vmin=top - dynamic_range_db, vmax=top, interpolation="nearest")
     fig.colorbar(im, ax=ax, label="intensity (dB re max)")
     ax.add_patch(plt.Rectangle((zoom[0], zoom[2]), zoom[1] - zoom[0], zoom[3] - zoom[2], fill=False, ec="white", lw=1))
     ax.set_title((title + ": " if title else "") + "(a) intensity |Σ p|²")

@@ -84,6 +84,8 @@ FILTER_PAD = 256
 response is confined to about 40 samples by the band window)."""
 CHUNK_PAIRS = 1 << 18
 """Scatterer-channel pairs processed per vectorised chunk (memory bound)."""
+CHUNK_SPAN = 2048
+"""Largest spread of arrival times (samples) within one chunk."""
 
 
 # ---------------------------------------------------------------------------
@@ -1423,11 +1425,13 @@ class Simulator:
     def ping(self, index: int) -> np.ndarray:
         """Raw samples ``(channel, sample)`` float32 of ping ``index``."""
         g = self.geometry(int(index))
-        out = self.render(g, self.echoes(g))
+        out = self.render(g, self.echoes(g)).astype(np.float32)
         if self.noise_std > 0:
             rng = np.random.default_rng([self.seed, 1, int(index)])
-            out += self.noise_std * rng.standard_normal(out.shape)
-        return out.astype(np.float32)
+            noise = rng.standard_normal(out.shape, dtype=np.float32)
+            noise *= np.float32(self.noise_std)
+            out += noise
+        return out
 
     def render(self, g: PingGeometry, sets: list[_Echoes]) -> np.ndarray:
         """Noise-free samples ``(channel, sample)`` float64 of the echo sets."""
@@ -1463,12 +1467,19 @@ class Simulator:
         rel0 = e.pos - o
         t_centre = e.src_leg + np.sqrt(np.einsum("ij,ij->i", rel0, rel0)) + e.extra_s * self.c
         order = np.argsort(t_centre, kind="stable")
+        t_sorted = t_centre[order] * (self.fs / self.c)
         ws_all = self.scene.sonar.tx_length_m * np.abs(e.u) / self.c * self.fs
         n_ch = len(eo)
         step = max(1, CHUNK_PAIRS // n_ch)
         fs_c = self.fs / self.c
-        for i in range(0, len(order), step):
-            rows = order[i:i + step]
+        i = 0
+        while i < len(order):
+            # at most `step` scatterers arriving within CHUNK_SPAN samples, so
+            # that each chunk's scratch window stays small
+            stop = min(i + step, int(np.searchsorted(t_sorted, t_sorted[i] + CHUNK_SPAN)))
+            stop = max(stop, i + 1)
+            rows = order[i:stop]
+            i = stop
             rel = rel0[rows]
             d2 = rel @ (-2.0 * eo.T)
             d2 += np.einsum("ij,ij->i", rel, rel)[:, None]
