@@ -80,6 +80,13 @@ def paper_grid() -> PolarGrid:
     return PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=1100.0, angles_deg=(-80.0, 80.0))
 
 
+def accuracy_window(ranges_m=(880.0, 1000.0), angles_deg=(68.0, 80.0)) -> PolarGrid:
+    """The error-measure window at the paper's resolution; the default holds
+    ``line4``'s pipeline C (920 m across, 76 degrees) and the seabed around it."""
+    return PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, min_range_m=ranges_m[0], max_range_m=ranges_m[1],
+                             angles_deg=angles_deg)
+
+
 def best_time(fn, repeats: int) -> float:
     """Smallest wall time (s) of ``repeats`` calls of ``fn``."""
     best = np.inf
@@ -118,7 +125,7 @@ def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGr
     grid : PolarGrid
         Timing grid (default: the paper's).
     accuracy_grid : PolarGrid
-        Window for the error measures (default: ranges 240-640 m, angles -60 to -20 degrees).
+        Window for the error measures (default :func:`accuracy_window`).
     cases : iterable of (mode, upsample, precision)
         What to measure.
     repeats : int
@@ -127,9 +134,7 @@ def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGr
         The NumPy reference is timed on every n-th angle row.
     """
     grid = grid or paper_grid()
-    accuracy_grid = accuracy_grid or PolarGrid.regular(range_res_m=grid.ranges_m[1] - grid.ranges_m[0],
-                                                       angle_res_deg=0.1, min_range_m=240, max_range_m=640,
-                                                       angles_deg=(-60, -20))
+    accuracy_grid = accuracy_grid or accuracy_window()
     say = progress or (lambda msg: log.info(msg))
     ref = get_engine("reference")
     inputs = {}

@@ -82,7 +82,10 @@ def cmd_bench(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     with PingFile(write_ping_file(ds, out / "bench-ping.nc")) as f:
         ping = f.ping(0)
-    res = run_benchmark(ping, repeats=args.repeats, progress=say)
+    from .bench import accuracy_window
+
+    window = accuracy_window(tuple(args.accuracy_window[:2]), tuple(args.accuracy_window[2:]))
+    res = run_benchmark(ping, accuracy_grid=window, repeats=args.repeats, progress=say)
     paths = write_report(res, out)
     if not args.quiet:
         print(markdown_table(res))
@@ -96,6 +99,10 @@ def register_bench(sub, common) -> None:
     sp.add_argument("--scene", default="line4", help="scene to image (default line4: a pipe at 920 m)")
     sp.add_argument("--max-range", type=float, default=1100.0, metavar="M", help="record range (m, default 1100)")
     sp.add_argument("--repeats", type=int, default=3, help="timed runs per mode, best kept (default 3)")
+    sp.add_argument("--accuracy-window", type=float, nargs=4, default=(880.0, 1000.0, 68.0, 80.0),
+                    metavar=("R0", "R1", "A0", "A1"),
+                    help="ranges (m) and angles (degree) where errors are measured against the exact "
+                         "reference (default 880 1000 68 80: line4's pipe at 920 m)")
     common(sp)
     sp.set_defaults(func=cmd_bench)
 

@@ -531,6 +531,9 @@ class Scene:
         return d
 
 
+TRUTH_KEYS = ("x", "y", "z", "angle", "seabed_z", "image_y", "image_z", "u")
+"""Per-target truth of :meth:`Simulator.truth`, stored as ``truth_target_<key>``."""
+
 _TARGET_KINDS = {"point": PointTarget, "line": LineTarget}
 _TARGET_KINDS_INV = {v: k for k, v in _TARGET_KINDS.items()}
 
@@ -915,7 +918,11 @@ class _Echoes:
     receive leg (m, 1 for image sources); ``extra_s``: extra delay
     (refraction, s); ``u``: direction cosine of the transmitted ray on the
     column axis; ``b_s``: attenuation ``exp(-b f)`` (s) or ``None``;
-    ``response``: a spectral response ``f -> H(f)`` or ``None``.
+    ``response``: a spectral response ``f -> H(f)`` or ``None``;
+    ``rx_tilt``: for refracted echoes, the refracted minus the straight ray
+    direction at the array (``(S, 3)``): element ``n`` gets the extra delay
+    ``-rx_tilt · (e_n - o) / c`` (the first-order change of the refraction
+    delay across the array).
     """
 
     label: str
@@ -927,6 +934,7 @@ class _Echoes:
     u: np.ndarray
     b_s: np.ndarray | None = None
     response: typing.Callable | None = None
+    rx_tilt: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.amp)
@@ -934,7 +942,8 @@ class _Echoes:
     def subset(self, mask: np.ndarray) -> "_Echoes":
         return dataclasses.replace(
             self, pos=self.pos[mask], amp=self.amp[mask], src_leg=self.src_leg[mask], spread=self.spread[mask],
-            extra_s=self.extra_s[mask], u=self.u[mask], b_s=None if self.b_s is None else self.b_s[mask])
+            extra_s=self.extra_s[mask], u=self.u[mask], b_s=None if self.b_s is None else self.b_s[mask],
+            rx_tilt=None if self.rx_tilt is None else self.rx_tilt[mask])
 
 
 @dataclass(frozen=True)
@@ -1237,15 +1246,20 @@ class Simulator:
 
     def _line_points(self, t: LineTarget) -> dict:
         """Points along a line every ``Δs`` over the stretch the pings can see."""
-        x_lo, x_hi = self._x_window
-        s0, s1 = self._arc_extent(t, x_lo - 10.0, x_hi + 10.0)
-        _, _, d = self._arc(t, np.linspace(s0, s1, 257))
         spacing = self.scene.model.line_spacing_m
         if spacing is None:
+            # from the stretch the whole line can see, not the pings asked for,
+            # so that a ping is the same whichever pings are made
+            track = self.scene.survey.pings * self.scene.survey.step_m
+            a0, a1 = self._arc_extent(t, -2 * self.max_range_m, track + 2 * self.max_range_m)
+            _, _, d = self._arc(t, np.linspace(a0, a1, 1025))
             wl_min = self.c / (1.05 * self.scene.sonar.pulse_f1_hz)
             max_cos = min(1.0, self.u_cut + float(np.max(np.abs(np.sin(d)))))
             spacing = wl_min / (4 * max_cos)
-        s = np.arange(s0, s1, spacing)
+        x_lo, x_hi = self._x_window
+        s0, s1 = self._arc_extent(t, x_lo - 10.0, x_hi + 10.0)
+        # points at whole multiples of the spacing from the reference point
+        s = np.arange(math.floor(s0 / spacing), math.ceil(s1 / spacing) + 1) * spacing
         x, y, d = self._arc(t, s)
         order = np.argsort(x, kind="stable")
         z = np.full(s.size, t.z_m) if t.z_m is not None else self.seabed_z(x, y) + t.burial_m
@@ -1290,8 +1304,16 @@ class Simulator:
         extra = sum(leg["time_factor_m"] - straight for leg, straight in legs) / self.c
         path = sum(leg["sediment_m"] for leg, _ in legs)
         v = reflection_coefficient(legs[0][0]["grazing_water_rad"], sb.density_ratio, sb.sound_speed_ratio)
+        # ray directions at the array centre: refracted (it arrives from the
+        # crossing point of the interface) and straight
+        rel = pos - g.centre
+        horiz = np.hypot(rel[:, 0], rel[:, 1])
+        graz = legs[1][0]["grazing_water_rad"]
+        scale = np.cos(graz) / np.maximum(horiz, 1e-12)
+        ray = np.stack([rel[:, 0] * scale, rel[:, 1] * scale, np.sin(graz)], axis=1)
+        tilt = ray - rel / legs[1][1][:, None]
         return {"extra_s": extra, "b_s": self.alpha_np * path, "transmission": 1 - v * v,
-                "grazing_sediment_rad": legs[0][0]["grazing_sediment_rad"], "path_m": path}
+                "grazing_sediment_rad": legs[0][0]["grazing_sediment_rad"], "path_m": path, "rx_tilt": tilt}
 
     # -- echo sets ---------------------------------------------------------------
     def echoes(self, g: PingGeometry) -> list[_Echoes]:
@@ -1321,7 +1343,8 @@ class Simulator:
         if t.burial_m is None:
             return self._scatterers(t.name, g, pos, amp)
         bur = self._buried(g, pos, np.array([t.burial_m]), np.array([z - t.burial_m]))
-        return self._scatterers(t.name, g, pos, amp * bur["transmission"], extra_s=bur["extra_s"], b_s=bur["b_s"])
+        return self._scatterers(t.name, g, pos, amp * bur["transmission"], extra_s=bur["extra_s"], b_s=bur["b_s"],
+                                rx_tilt=bur["rx_tilt"])
 
     def _line_echo(self, g: PingGeometry, t: LineTarget, pts: dict) -> _Echoes | None:
         x_ext = self.max_range_m * self.u_cut / math.sqrt(1 - self.u_cut ** 2)
@@ -1339,7 +1362,7 @@ class Simulator:
             medium_c = self.c * self.scene.seabed.sound_speed_ratio
             bur = self._buried(g, pos, np.full(len(pos), t.burial_m), pos[:, 2] - t.burial_m)
             amp = amp * bur["transmission"]
-            kw = {"extra_s": bur["extra_s"], "b_s": bur["b_s"]}
+            kw = {"extra_s": bur["extra_s"], "b_s": bur["b_s"], "rx_tilt": bur["rx_tilt"]}
         return self._scatterers(t.name, g, pos, amp, response=functools.partial(t.response, sound_speed_m_s=medium_c),
                                 **kw)
 
@@ -1366,7 +1389,7 @@ class Simulator:
             z2 = sub.density_ratio * sub.sound_speed_ratio
             v2 = (z2 - z1) / (z2 + z1) * (1 - v1 * v1)
             d = sub.depth_below_seabed_m
-            deep = seabed.shifted(d / c_s)
+            deep = seabed.shifted(d * seabed.n[2] / c_s)  # vertical thickness d, normal thickness d cos(slope)
             if sub.specular:
                 paths.append(("subbottom", [deep], v2, 2 * d))
             if sb.multiple and sub.specular:
@@ -1408,14 +1431,14 @@ class Simulator:
             bur = self._buried(g, pos, pos[:, 2] - z_sb, z_sb)
             sin_graz = np.sin(bur["grazing_sediment_rad"])
             trans = bur["transmission"]
-            kw = {"extra_s": bur["extra_s"], "b_s": bur["b_s"]}
+            kw = {"extra_s": bur["extra_s"], "b_s": bur["b_s"], "rx_tilt": bur["rx_tilt"]}
         else:
             normal = self._seabed_plane(g).n
             sin_graz = np.abs((pos - g.source) @ normal) / dist
         sigma = 10 ** (sc.strength_db / 10) * sin_graz ** sc.grazing_exponent
         amp = g_amp * np.sqrt(sigma / density) * trans
         e = _Echoes(label=f"layer{f['layer']}", pos=pos, amp=amp * self.taper(u), src_leg=dist, spread=dist,
-                    extra_s=kw.get("extra_s", np.zeros(len(amp))), u=u, b_s=kw.get("b_s"))
+                    extra_s=kw.get("extra_s", np.zeros(len(amp))), u=u, b_s=kw.get("b_s"), rx_tilt=kw.get("rx_tilt"))
         if e.b_s is not None:
             cut = e.b_s * self.fc * DB_PER_NEPER <= self.scene.model.attenuation_cut_db
             e = e.subset(cut)
@@ -1487,6 +1510,8 @@ class Simulator:
             d = np.sqrt(d2, out=d2)
             t = (d + e.src_leg[rows, None]) * fs_c
             t += ((e.extra_s[rows] - self.t0) * self.fs)[:, None]
+            if e.rx_tilt is not None:
+                t -= e.rx_tilt[rows] @ (eo.T * (self.fs / self.c))
             w = e.amp[rows, None] / (e.spread[rows, None] * d)
             yield rows, t, w, ws_all[rows]
 
@@ -1562,22 +1587,44 @@ class Simulator:
         return out
 
     # -- truth -------------------------------------------------------------------
+    def image_position(self, g: PingGeometry, r: np.ndarray) -> tuple[float, float]:
+        """Where a 2-D imager puts an echo from ``r`` (earth frame, m): the point
+        of the plane ``x = 0`` at the same range from the source and the same
+        direction cosine on the (rolled) receive-array axis."""
+        q = np.asarray(r, dtype=np.float64) - g.source
+        rng = float(np.linalg.norm(q))
+        phi = math.radians(g.roll_deg)
+        axis = np.array([0.0, math.cos(phi), math.sin(phi)])
+        down = np.array([0.0, -math.sin(phi), math.cos(phi)])
+        along = float(q @ axis)
+        p = g.source + along * axis + math.sqrt(max(rng * rng - along * along, 0.0)) * down
+        return float(p[1]), float(p[2])
+
     def truth(self, g: PingGeometry) -> dict:
         """Target positions in the earth frame of ping ``g`` and the seabed depth.
 
-        Lines: where they cross the image plane ``x = 0``; points: their
-        position.  ``z`` is below the transducers' mean depth (heave is in
-        the source and element positions, not in the frame).
+        ``x, y, z``: lines where they cross the image plane ``x = 0``, points
+        where they are; ``z`` is below the transducers' mean depth (heave is
+        in the source and element positions, not in the frame).
+        ``image_y, image_z``: where the imager should show the echo, from the
+        point of the target nearest the source (:meth:`image_position`);
+        ``u``: that point's direction cosine on the transmit column (the
+        beam's −3 dB half-width is about 0.02 at 9 kHz, 0.09 at 2 kHz).
         """
         n = len(self.scene.targets)
-        out = {k: np.full(n, np.nan) for k in ("x", "y", "z", "angle", "seabed_z")}
-        for k, t in enumerate(self.scene.targets):
+        out = {k: np.full(n, np.nan) for k in TRUTH_KEYS}
+        for k, (t, pts) in enumerate(zip(self.scene.targets, self._lines)):
             if isinstance(t, PointTarget):
                 x, y, z = self._target_world(t)
                 out["x"][k], out["y"][k], out["z"][k] = x - g.along_m, y, z
+                nearest = np.array([x - g.along_m, y, z])
             else:
                 y, z, ang = self._line_crossing_coarse(t, g.along_m)
                 out["x"][k], out["y"][k], out["z"][k], out["angle"][k] = 0.0, y, z, ang
+                rel = np.stack([pts["x"] - g.along_m, pts["y"], pts["z"]], axis=1) - g.source
+                nearest = rel[np.argmin(np.einsum("ij,ij->i", rel, rel))] + g.source
+            out["image_y"][k], out["image_z"][k] = self.image_position(g, nearest)
+            out["u"][k] = float(self._direction_cosine(g, nearest[None, :])[1][0])
             if self.scene.seabed is not None and np.isfinite(out["y"][k]):
                 out["seabed_z"][k] = float(self.seabed_z(g.along_m + out["x"][k], out["y"][k]))
         seabed = float(self.seabed_z(g.along_m, 0.0)) if self.scene.seabed is not None else np.nan
@@ -1602,7 +1649,7 @@ class Simulator:
         samples = np.empty((n_p, n_c, self.n_samples), dtype=np.float32)
         motion = np.zeros((n_p, 3))
         nav = np.zeros((n_p, 2))
-        tt = {k: np.full((n_p, n_t), np.nan) for k in ("x", "y", "z", "angle", "seabed_z")}
+        tt = {k: np.full((n_p, n_t), np.nan) for k in TRUTH_KEYS}
         seabed = np.full(n_p, np.nan)
         for j, i in enumerate(tqdm(self.indices, desc="simulate", unit="ping", disable=not progress, leave=False)):
             g = self.geometry(int(i))
@@ -1653,6 +1700,12 @@ class Simulator:
                                        {"units": "degree", "long_name": "line heading relative to the track at the image plane"}),
                 "truth_target_seabed_z": (("ping", "target"), tt["seabed_z"],
                                           {"units": "m", "long_name": "seabed depth above the target"}),
+                "truth_target_image_y": (("ping", "target"), tt["image_y"],
+                                         {"units": "m", "long_name": "expected image y of the echo (nearest point, same range and cone angle)"}),
+                "truth_target_image_z": (("ping", "target"), tt["image_z"],
+                                         {"units": "m", "long_name": "expected image z of the echo (nearest point, same range and cone angle)"}),
+                "truth_target_u": (("ping", "target"), tt["u"],
+                                   {"units": "1", "long_name": "along-track direction cosine of the target's nearest point"}),
                 "truth_seabed_z": (("ping",), seabed, {"units": "m", "long_name": "seabed depth at nadir below the transducers' mean depth"}),
             },
             coords={

@@ -471,9 +471,13 @@ def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float
         """Echo 0 refitted with another reflection model, the deeper echoes held."""
         return fit([kind] + base.kinds[1:], [np.asarray(q0, float)] + base_q[1:], free={0})
 
+    def refined(state):
+        """Joint refit of all echoes from a partial fit (the deeper echoes adapt to the new seafloor)."""
+        return fit(state.kinds, model.split(state.kinds, state.params))
+
     verdict = {"smooth": p_adequate(base.chi2, base.params.size) > significance}
     tau0, v0 = base_q[0][0], base_q[0][1]
-    rough = with_seafloor("G0", [tau0, v0, 0.0])
+    rough = refined(with_seafloor("G0", [tau0, v0, 0.0]))
     extra = p_extra(base.chi2, rough.chi2) < significance
     verdict["rough"] = p_adequate(rough.chi2, rough.params.size) > significance
     seafloor = base
@@ -487,9 +491,11 @@ def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float
                 for dx in (0.08, 0.2, 0.4):
                     for r1 in (0.0, 0.5 * v0):
                         big_l = math.atanh(float(np.clip(v0 - r1, -0.9, 0.9)))
-                        q = [tau0, r1, big_l, dx * wavelength * 100.0] + ([0.0] if kind == "GT0" else [])
+                        # the bed's reflection is centred half-way down it: start the top one bed-crossing earlier
+                        tau_top = tau0 - dx * wavelength / c_ramp * 1e3
+                        q = [tau_top, r1, big_l, dx * wavelength * 100.0] + ([0.0] if kind == "GT0" else [])
                         trials.append(with_seafloor(kind, q))
-                best[kind] = min(trials, key=lambda s: s.chi2)
+                best[kind] = refined(min(trials, key=lambda s: s.chi2))
             verdict["transitional"] = p_adequate(best["T0"].chi2, best["T0"].params.size) > significance
             verdict["rough+transitional"] = p_adequate(best["GT0"].chi2, best["GT0"].params.size) > significance
         if verdict["rough"] and not verdict.get("transitional", False):
