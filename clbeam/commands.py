@@ -61,7 +61,7 @@ def register_demo(sub, common) -> None:
     sp.add_argument("-o", "--output", default="clbeam-demo", metavar="DIR", help="output folder (default clbeam-demo)")
     sp.add_argument("--pings", type=int, default=3, help="pings to simulate (default 3)")
     sp.add_argument("--scene", default="line1", help="scene (default line1)")
-    sp.add_argument("--interp", default="linear", choices=list(INTERP_MODES), help="interpolation mode")
+    sp.add_argument("--interp", default="cubic", choices=list(INTERP_MODES), help="interpolation mode (default cubic)")
     sp.add_argument("--backend", default="opencl", choices=["opencl", "reference"])
     sp.add_argument("--device", default=None, help="OpenCL device: index or name substring")
     common(sp)
@@ -108,11 +108,9 @@ def register_bench(sub, common) -> None:
 
 
 def register_forward(sub, common) -> None:
-    try:
-        from .forward.cli import add_parser
-    except ImportError:  # the forward-model command is optional
-        return
-    add_parser(sub)
+    from .forward.cli import add_parser
+
+    add_parser(sub, common)
 
 
 REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward]

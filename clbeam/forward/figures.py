@@ -189,7 +189,8 @@ def table2_figures(out_dir, *, sample_rate_hz: float = 48000.0, data: Table2Trac
         times = data.traces[(1, name)].echoes.times_s
         ax.set_xlim(times.min() * 1e3 - 2.0, times.max() * 1e3 + 2.0)
         chirp = CHIRPS[name]
-        ax.set_title(f"chirp {chirp.f0_hz / 1e3:g}-{chirp.f1_hz / 1e3:g} kHz, {chirp.duration_s * 1e3:g} ms", fontsize=9)
+        ax.set_title(f"chirp {chirp.f0_hz / 1e3:g}-{chirp.f1_hz / 1e3:g} kHz, {chirp.duration_s * 1e3:g} ms",
+                     fontsize=9)
         ax.set_ylabel("y_c (Pa)")
         ax.legend(loc="upper right", fontsize=8)
     ax.set_xlabel("two-way time (ms)")

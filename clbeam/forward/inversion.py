@@ -26,12 +26,14 @@ ratios; see ``docs/forward.md`` for the reasons):
    transitional bed of intermediate thickness is reported unresolvable: the
    paper's §5, "if rugosity is conjugated with intermediate thickness of
    transitional layer, rugosity is not assessable and reflection loss is
-   sorely calculable".  No number is returned for it.
-6. Layer stripping: ``V_i = v_i / prod_{k<i} (1 - V_k^2)``,
-   ``k_p' = (s_{i+1} - s_i) / (c_i (tau_{i+1} - tau_i))``; a deeper echo
-   whose spectrum is not linear in dB (significant extra ``f^2`` term) has
-   its reflection and the attenuation of the layer above marked not
-   separable.
+   sorely calculable".  No number is returned for it.  The caller may
+   exclude transitional beds (``transitional_beds=False``); a smoothly
+   falling reflection is then read as roughness.
+6. A deeper echo whose spectrum is not linear in dB (a significant extra
+   ``f^2`` term) has its reflection and the attenuation of the layers on
+   both sides of it marked not separable.
+7. Layer stripping: ``V_i = v_i / prod_{k<i} (1 - V_k^2)``,
+   ``k_p' = (s_{i+1} - s_i) / (c_i (tau_{i+1} - tau_i))``.
 """
 
 from __future__ import annotations
@@ -48,7 +50,6 @@ from ..errors import ClbeamError, OptionError, require
 from .trace import Chirp
 from .transition import transition_coefficients
 
-_LN10_20 = math.log(10.0) / 20.0
 #: Upsampling of the detection view.
 _UPSAMPLE = 8
 
@@ -211,7 +212,7 @@ class _Model:
             shape = q[1] * np.exp(-q[2] * self.fk ** 2)
         elif kind == "T0":
             shape = q[1] + (1 - q[1] ** 2) * self.ramp(q[2], q[3])
-        elif kind == "GT0":
+        elif kind == "GT0":   # roughness on the top's reflection; its transmission loss (P_T ~ 0) neglected
             shape = q[1] * np.exp(-q[4] * self.fk ** 2) + (1 - q[1] ** 2) * self.ramp(q[2], q[3])
         elif kind == "D":
             shape = q[1] * 10 ** (-q[2] * self.fk / 20)
@@ -228,10 +229,6 @@ class _Model:
 
     def predict(self, kinds, p):
         return sum(self.echo(k, q) for k, q in zip(kinds, self.split(kinds, p)))
-
-    def residual(self, kinds, p):
-        r = (self.y - self.x * self.predict(kinds, p)) / self.scale
-        return np.concatenate([r.real, r.imag])
 
     def fit(self, kinds, params_list, bounds, free=None):
         """Fit the echoes in ``free`` (default all), the others held at ``params_list``.
@@ -289,6 +286,262 @@ class _State:
     params: np.ndarray
     chi2: float
     cov: np.ndarray
+
+
+class _Inversion:
+    """Spectra, noise, detection view and tests of one trace (steps 1–3 of the module docstring)."""
+
+    def __init__(self, yc, chirp, fs, t0_s, p0, c1, c_layers, noise_std, false_alarm, significance):
+        n = yc.size
+        self.chirp, self.fs, self.t0, self.p0, self.c1 = chirp, fs, t0_s, p0, c1
+        self.c_layers = c_layers
+        self.c_ramp = float(c_layers[0]) if c_layers else float(c1)
+        self.significance = significance
+        replica = chirp.replica(fs)
+        require(replica.size < n, OptionError, f"trace of {n} samples is shorter than the pulse ({replica.size})")
+        energy = float(np.dot(replica, replica))
+        freq = scipy.fft.rfftfreq(n, 1.0 / fs)
+        x_all = scipy.fft.rfft(replica, n)
+        power = np.abs(x_all) ** 2
+        fit_bins = power >= 1e-3 * power.max()
+        fit_bins[0] = fit_bins[-1] = False
+        y_all = np.zeros_like(x_all)
+        y_all[fit_bins] = scipy.fft.rfft(yc)[fit_bins] * energy / np.conj(x_all[fit_bins])
+        view_bins = power >= 0.1 * power.max()
+        idx = np.flatnonzero(view_bins)
+        window = np.zeros(freq.size)
+        window[idx] = np.blackman(idx.size + 2)[1:-1]
+        self.n, self.freq, self.x_all, self.y_all = n, freq, x_all, y_all
+        self.fit_bins, self.view_bins, self.window = fit_bins, view_bins, window
+        self.exclusion_s = 4.0 / (freq[idx[-1]] - freq[idx[0]])
+        self.view_gain = 2 * window.sum() / n          # a unit echo's peak in the view
+        self.times_up = t0_s + np.arange(n * _UPSAMPLE) / (fs * _UPSAMPLE)
+
+        first = self._first_echo_s(false_alarm)
+        self.noise_dof = None
+        if noise_std is None:
+            stop = int((first - chirp.duration_s - self.exclusion_s - t0_s) * fs)
+            dof = 2.0 * chirp.bandwidth_hz * stop / fs
+            if stop < 8 or dof < 20:
+                raise OptionError(f"cannot estimate the noise: only {max(stop, 0)} samples precede the first echo "
+                                  f"by a pulse length; give noise_std")
+            noise_std = float(np.std(yc[:stop]) * math.sqrt(energy))   # var(y_c) = sigma^2 / sum x^2
+            self.noise_dof = dof
+        require(math.isfinite(noise_std) and noise_std > 0, OptionError, f"noise_std must be > 0, got {noise_std!r}")
+        self.noise_std = float(noise_std)
+        scale = math.sqrt(n * noise_std ** 2 / 2.0)       # std of Re and Im of a white-noise FFT bin
+        self.model = _Model(freq[fit_bins], x_all[fit_bins], y_all[fit_bins], scale, t0_s, p0, c1, self.c_ramp)
+        self.n_res = 2 * int(fit_bins.sum())
+        view_var = 2 * noise_std ** 2 / n * float(np.sum(window[view_bins] ** 2 / power[view_bins]))
+        self.threshold = math.sqrt(2 * view_var * math.log(n / false_alarm))
+
+    def view(self, spec):
+        """Deconvolved, Blackman-weighted analytic view of a received-spectrum residual, upsampled."""
+        full = np.zeros(self.n * _UPSAMPLE, complex)
+        d = np.zeros(self.freq.size, complex)
+        d[self.view_bins] = spec[self.view_bins] / self.x_all[self.view_bins] * self.window[self.view_bins]
+        full[:self.freq.size] = 2 * d
+        return scipy.fft.ifft(full) * _UPSAMPLE
+
+    def _first_echo_s(self, false_alarm):
+        """Time of the earliest crossing of a threshold set from the view's median (Rayleigh noise envelope)."""
+        env = np.abs(self.view(self.y_all))
+        sigma = float(np.median(env)) / math.sqrt(2 * math.log(2.0))
+        level = max(sigma * math.sqrt(2 * math.log(env.size / false_alarm)), 1e-9 * float(env.max()))
+        above = np.flatnonzero(env >= level)
+        if above.size == 0:
+            raise UnresolvableError("no echo stands out of the noise in the trace")
+        return float(self.times_up[above[0]])
+
+    def adequate(self, state):
+        """Chi-square (F with an estimated noise) test that the model explains the data."""
+        dof = self.n_res - state.params.size
+        if self.noise_dof is None:
+            p = stats.chi2.sf(state.chi2, dof)
+        else:
+            p = stats.f.sf(state.chi2 / dof, dof, self.noise_dof)
+        return bool(p > self.significance)
+
+    def needs_extra(self, small, big):
+        """Likelihood-ratio test of one extra parameter (``big`` nests ``small``)."""
+        delta = max(small.chi2 - big.chi2, 0.0)
+        p = stats.chi2.sf(delta, 1) if self.noise_dof is None else stats.f.sf(delta, 1, self.noise_dof)
+        return bool(p < self.significance)
+
+    def fit(self, kinds, params_list, free=None):
+        """Least-squares fit (echoes in ``free``, default all); returns a :class:`_State`."""
+        bounds = [_bounds(k, q, self.exclusion_s / 2) for k, q in zip(kinds, params_list)]
+        p, chi2, cov = self.model.fit(kinds, [np.asarray(q, float) for q in params_list], bounds, free)
+        return _State(list(kinds), p, chi2, cov)
+
+    def split(self, state):
+        return [np.array(q, float) for q in self.model.split(state.kinds, state.params)]
+
+    def detect(self, max_echoes):
+        """Echoes one at a time, largest first, each followed by a joint smooth-model fit (step 3)."""
+        state = None
+        residual = self.y_all.copy()
+        while state is None or len(state.kinds) < max_echoes:
+            env = self.view(residual)
+            mag = np.abs(env)
+            plist = [] if state is None else self.split(state)
+            for q in plist:
+                mag[np.abs(self.times_up - q[0] * 1e-3) < self.exclusion_s] = 0.0
+            k = int(np.argmax(mag))
+            if mag[k] < self.threshold:
+                break
+            frac = 0.0
+            if 0 < k < mag.size - 1:   # parabolic refinement of the peak
+                den = mag[k - 1] - 2 * mag[k] + mag[k + 1]
+                frac = 0.5 * (mag[k - 1] - mag[k + 1]) / den if den != 0 else 0.0
+            tau = self.times_up[k] + frac / (self.fs * _UPSAMPLE)
+            v = float(np.real(env[k])) / self.view_gain * 2 * self.c1 * tau / self.p0
+            plist = sorted(plist + [np.array([tau * 1e3, v, 0.0])], key=lambda q: q[0])
+            # the earliest echo is the seafloor (no loss slope above it); the others carry one
+            plist = [q[:2] if i == 0 else np.array([q[0], q[1], q[2] if q.size == 3 else 0.0])
+                     for i, q in enumerate(plist)]
+            state = self.fit(["S0"] + ["D"] * (len(plist) - 1), plist)
+            residual = self.y_all.copy()
+            residual[self.fit_bins] = self.model.y - self.model.x * self.model.predict(state.kinds, state.params)
+        if state is None:
+            raise UnresolvableError(f"no echo above the detection threshold ({self.threshold:.3g} in the "
+                                    f"deconvolved trace): noise only")
+        return state
+
+    def seafloor(self, base, transitional_beds):
+        """Seafloor reflection model (step 5): state, status, reason and each model's adequacy."""
+        base_q = self.split(base)
+
+        def with_seafloor(kind, q0):   # echo 0 refitted alone, then all echoes jointly
+            return self.fit([kind] + base.kinds[1:], [np.asarray(q0, float)] + base_q[1:], free={0})
+
+        def refined(state):
+            return self.fit(state.kinds, self.split(state))
+
+        verdict = {"smooth": self.adequate(base)}
+        tau0, v0 = base_q[0][0], base_q[0][1]
+        rough = refined(with_seafloor("G0", [tau0, v0, 0.0]))
+        verdict["rough"] = self.adequate(rough)
+        if verdict["smooth"] and not self.needs_extra(base, rough):
+            return base, "smooth", None, verdict
+        best = {}
+        if transitional_beds:
+            wavelength = self.c_ramp / self.chirp.centre_hz
+            for kind in ("T0", "GT0"):
+                trials = []
+                for dx in (0.08, 0.2, 0.4):
+                    for r1 in (0.0, 0.5 * v0):
+                        big_l = math.atanh(float(np.clip(v0 - r1, -0.9, 0.9)))
+                        # the bed reflects from half-way down: start the top one bed crossing earlier
+                        tau_top = tau0 - dx * wavelength / self.c_ramp * 1e3
+                        q = [tau_top, r1, big_l, dx * wavelength * 100.0] + ([0.0] if kind == "GT0" else [])
+                        trials.append(with_seafloor(kind, q))
+                best[kind] = refined(min(trials, key=lambda s: s.chi2))
+            verdict["transitional"] = self.adequate(best["T0"])
+            verdict["rough+transitional"] = self.adequate(best["GT0"])
+        if verdict["rough"] and not verdict.get("transitional", False):
+            return rough, "rough", None, verdict
+        if not transitional_beds:
+            what = ("neither a smooth nor a rough interface explains it within the noise "
+                    "(a transitional bed would, but transitional_beds is off)")
+        elif verdict["rough"]:
+            what = "a rough interface and a transitional bed explain it equally well"
+        elif verdict["transitional"] or verdict["rough+transitional"]:
+            what = "it needs a transitional bed of intermediate thickness, under which the roughness is not assessable"
+        else:
+            what = "no smooth, rough or transitional seafloor model explains it within the noise"
+        reason = (f"echo 0 at {tau0:.3f} ms: the seafloor reflection changes with frequency and {what}: "
+                  f"roughness and reflection loss are not resolvable (Rakotonarivo §5)")
+        candidates = [rough] + list(best.values())
+        adequate = [c for c in candidates if self.adequate(c)]
+        return min(adequate or candidates, key=lambda s: s.chi2), "unresolvable", reason, verdict
+
+    def deeper(self, seafloor):
+        """Joint refit and the echoes whose spectrum is not linear in dB (step 6)."""
+        n_echo = len(seafloor.kinds)
+        size0 = _PARAMS[seafloor.kinds[0]]
+        # a seafloor read with a transitional bed is held: its parameters are not reported
+        hold = seafloor.kinds[0] in ("T0", "GT0")
+        free = set(range(1, n_echo)) if hold else None
+        final = self.fit(seafloor.kinds, self.split(seafloor), free)
+        if hold:
+            final.cov[:size0, :size0] = seafloor.cov[:size0, :size0]
+        qs = self.split(final)
+        flagged = set()
+        for i in range(1, n_echo):
+            kinds = list(final.kinds)
+            kinds[i] = "DG"
+            trial = [q if j != i else np.concatenate([q, [0.0]]) for j, q in enumerate(qs)]
+            if self.needs_extra(final, self.fit(kinds, trial, free={i})):
+                flagged.add(i)
+        if flagged:   # refit with the f^2 term on them: their f -> 0 amplitudes then serve the stripping
+            kinds = ["DG" if i in flagged else k for i, k in enumerate(final.kinds)]
+            trial = [np.concatenate([q, [0.0]]) if i in flagged else q for i, q in enumerate(qs)]
+            cov0 = final.cov[:size0, :size0].copy()
+            final = self.fit(kinds, trial, free)
+            if hold:
+                final.cov[:size0, :size0] = cov0
+        return final, flagged
+
+    def estimates(self, final, status0, reason0, band_v0, flagged):
+        """Echo and layer estimates by layer stripping (step 7)."""
+        qs = self.split(final)
+        offsets = np.cumsum([0] + [_PARAMS[k] for k in final.kinds])
+        cov = final.cov
+        std = np.sqrt(np.clip(np.diag(cov), 0, None))
+        echoes, stripping, note = [], 1.0, None
+        for i, q in enumerate(qs):
+            o = offsets[i]
+            tau, tau_std = q[0] * 1e-3, std[o] * 1e-3
+            if i == 0 and status0 == "unresolvable":
+                echoes.append(EchoEstimate(0, tau, tau_std, None, None, status0, reason=reason0))
+                stripping *= 1 - band_v0 ** 2
+                note = ("approximate: the transmission through the seafloor uses its band-average reflection "
+                        "(a transitional bed transmits almost fully)")
+            elif i == 0:
+                refl, refl_std = float(q[1]), float(std[o + 1])
+                sig = sig_std = None
+                if status0 == "rough":   # exp(-P^2/2) = exp(-g f^2): sigma = sqrt(g/2) c1 / (2 pi 1000)
+                    gamma, gamma_std = float(q[2]), float(std[o + 2])
+                    sig = math.sqrt(gamma / 2.0) * self.c1 / (2 * math.pi * 1000.0)
+                    sig_std = sig * gamma_std / (2 * gamma) if gamma > 0 else math.inf
+                echoes.append(EchoEstimate(0, tau, tau_std, refl, refl_std, status0, sig,
+                                           None if sig is None else 0.75 * sig, sig_std,
+                                           None if sig is None else 0.75 * sig_std))
+                stripping *= 1 - refl ** 2
+            elif i in flagged:
+                echoes.append(EchoEstimate(i, tau, tau_std, None, None, "frequency-dependent",
+                                           reason=(f"echo {i} at {q[0]:.3f} ms: its spectrum is not linear in dB "
+                                                   f"(rough or graded interface): its reflection and the "
+                                                   f"attenuation above it are not separable")))
+                stripping *= 1 - float(q[1] / stripping) ** 2
+                note = (f"approximate: the transmission through interface {i} uses the low-frequency limit of its "
+                        f"frequency-dependent reflection")
+            else:
+                refl = float(q[1] / stripping)
+                echoes.append(EchoEstimate(i, tau, tau_std, refl, float(std[o + 1] / stripping), "smooth", note=note))
+                stripping *= 1 - refl ** 2
+
+        layers = []
+        for i in range(len(qs) - 1):
+            oa, ob = offsets[i], offsets[i + 1]
+            dt = (qs[i + 1][0] - qs[i][0]) * 1e-3
+            dt_std = math.sqrt(max(cov[oa, oa] + cov[ob, ob] - 2 * cov[oa, ob], 0.0)) * 1e-3
+            c = float(self.c_layers[i]) if i < len(self.c_layers) else float(self.c1)
+            bad = sorted({i, i + 1} & flagged)
+            if bad:
+                layers.append(LayerEstimate(i + 1, dt, dt_std, c, c * dt / 2, None, None, None, None,
+                                            reason=f"layer {i + 1}: attenuation not separable from the "
+                                                   f"frequency-dependent reflection of echo {bad[0]}"))
+                continue
+            # two-way loss slope across the layer: s_{i+1} - s_i, the seafloor's s being 0
+            s_b, var_b = qs[i + 1][2], cov[ob + 2, ob + 2]
+            s_a, var_a, cov_ab = (0.0, 0.0, 0.0) if i == 0 else (qs[i][2], cov[oa + 2, oa + 2], cov[oa + 2, ob + 2])
+            slope = float(s_b - s_a)
+            slope_std = math.sqrt(max(var_a + var_b - 2 * cov_ab, 0.0))
+            layers.append(LayerEstimate(i + 1, dt, dt_std, c, c * dt / 2, slope, slope_std,
+                                        slope / (c * dt), slope_std / (c * dt)))
+        return tuple(echoes), tuple(layers)
 
 
 def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float = 0.0, p0: float = 1.0,
@@ -352,262 +605,12 @@ def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float
             f"false_alarm and significance must lie in (0, 1), got {false_alarm!r} and {significance!r}")
     require(int(max_echoes) == max_echoes and max_echoes >= 1, OptionError,
             f"max_echoes must be a positive integer, got {max_echoes!r}")
-    n = yc.size
-    fs = float(sample_rate_hz)
-    replica = chirp.replica(fs)
-    require(replica.size < n, OptionError, f"trace of {n} samples is shorter than the pulse ({replica.size})")
-    energy = float(np.dot(replica, replica))
-    freq = scipy.fft.rfftfreq(n, 1.0 / fs)
-    x_all = scipy.fft.rfft(replica, n)
-    power = np.abs(x_all) ** 2
-    fit_bins = power >= 1e-3 * power.max()
-    fit_bins[0] = fit_bins[-1] = False
-    y_all = np.zeros_like(x_all)
-    y_all[fit_bins] = scipy.fft.rfft(yc)[fit_bins] * energy / np.conj(x_all[fit_bins])
-    view_bins = power >= 0.1 * power.max()
-    idx = np.flatnonzero(view_bins)
-    window = np.zeros(freq.size)
-    window[idx] = np.blackman(idx.size + 2)[1:-1]
-    bandwidth = freq[idx[-1]] - freq[idx[0]]
-    exclusion_s = 4.0 / bandwidth
-    c_layers = list(layer_sound_speeds_m_s or [])
-    c_ramp = float(c_layers[0]) if c_layers else float(water_sound_speed_m_s)
-
-    def view(spec):
-        """Deconvolved Blackman-weighted analytic view of a received-spectrum residual, upsampled."""
-        full = np.zeros(n * _UPSAMPLE, complex)
-        d = np.zeros(freq.size, complex)
-        d[view_bins] = spec[view_bins] / x_all[view_bins] * window[view_bins]
-        full[:freq.size] = 2 * d
-        return scipy.fft.ifft(full) * _UPSAMPLE
-
-    view_peak_gain = 2 * window.sum() / n     # a unit echo's peak in the view
-    times_up = t0_s + np.arange(n * _UPSAMPLE) / (fs * _UPSAMPLE)
-
-    # -- noise -------------------------------------------------------------
-    env0 = np.abs(view(y_all))
-    # first echo: earliest crossing of a threshold set from the view's median (Rayleigh noise envelope)
-    sigma_view = float(np.median(env0)) / math.sqrt(2 * math.log(2.0))
-    level = max(sigma_view * math.sqrt(2 * math.log(env0.size / false_alarm)), 1e-9 * float(env0.max()))
-    above = np.flatnonzero(env0 >= level)
-    if above.size == 0:
-        raise UnresolvableError("no echo stands out of the noise in the trace")
-    first = times_up[above[0]]
-    noise_dof = None
-    if noise_std is None:
-        stop = int((first - chirp.duration_s - exclusion_s - t0_s) * fs)
-        dof = 2.0 * chirp.bandwidth_hz * stop / fs
-        if stop < 8 or dof < 20:
-            raise OptionError(f"cannot estimate the noise: only {max(stop, 0)} samples precede the first echo by a pulse "
-                              f"length; give noise_std")
-        noise_std = float(np.std(yc[:stop]) * math.sqrt(energy))
-        noise_dof = dof
-    require(math.isfinite(noise_std) and noise_std > 0, OptionError, f"noise_std must be > 0, got {noise_std!r}")
-    scale = math.sqrt(n * noise_std ** 2 / 2.0)
-
-    model = _Model(freq[fit_bins], x_all[fit_bins], y_all[fit_bins], scale, t0_s, p0, water_sound_speed_m_s, c_ramp)
-    n_res = 2 * int(fit_bins.sum())
-    view_var = 2 * noise_std ** 2 / n * float(np.sum(window[view_bins] ** 2 / power[view_bins]))
-    threshold = math.sqrt(2 * view_var * math.log(n / false_alarm))
-
-    def p_adequate(chi2, n_par):
-        dof = n_res - n_par
-        if noise_dof is None:
-            return float(stats.chi2.sf(chi2, dof))
-        return float(stats.f.sf(chi2 / dof, dof, noise_dof))
-
-    def p_extra(chi2_small, chi2_big):
-        delta = max(chi2_small - chi2_big, 0.0)
-        if noise_dof is None:
-            return float(stats.chi2.sf(delta, 1))
-        return float(stats.f.sf(delta, 1, noise_dof))
-
-    def fit(kinds, params_list, free=None):
-        bounds = [_bounds(k, q, exclusion_s / 2) for k, q in zip(kinds, params_list)]
-        p, chi2, cov = model.fit(kinds, [np.asarray(q, float) for q in params_list], bounds, free)
-        return _State(list(kinds), p, chi2, cov)
-
-    # -- detection and the smooth fit ------------------------------------
-    state = None
-    residual = y_all.copy()
-    while state is None or len(state.kinds) < max_echoes:
-        env = view(residual)
-        mag = np.abs(env)
-        if state is not None:
-            for q in model.split(state.kinds, state.params):
-                mag[np.abs(times_up - q[0] * 1e-3) < exclusion_s] = 0.0
-        k = int(np.argmax(mag))
-        if mag[k] < threshold:
-            break
-        if 0 < k < mag.size - 1:   # parabolic refinement of the peak
-            a, b, c = mag[k - 1], mag[k], mag[k + 1]
-            den = a - 2 * b + c
-            frac = 0.5 * (a - c) / den if den != 0 else 0.0
-        else:
-            frac = 0.0
-        tau = times_up[k] + frac / (fs * _UPSAMPLE)
-        amp = float(np.real(env[k])) / view_peak_gain
-        v = amp * 2 * water_sound_speed_m_s * tau / p0
-        new = [tau * 1e3, v] if state is None else [tau * 1e3, v, 0.0]
-        kinds = ["S0"] if state is None else state.kinds + ["D"]
-        plist = [np.array(new)] if state is None else model.split(state.kinds, state.params) + [np.array(new)]
-        order = np.argsort([q[0] for q in plist])
-        plist = [plist[i] for i in order]
-        # the earliest echo is the seafloor (no loss slope); the others carry one
-        plist = [q[:2] if i == 0 else (q if q.size == 3 else np.array([q[0], q[1], 0.0])) for i, q in enumerate(plist)]
-        kinds = ["S0"] + ["D"] * (len(plist) - 1)
-        state = fit(kinds, plist)
-        residual = y_all.copy()
-        residual[fit_bins] = model.y - model.x * model.predict(state.kinds, state.params)
-    if state is None:
-        raise UnresolvableError(f"no echo above the detection threshold ({threshold:.3g} in the deconvolved trace): "
-                                f"noise only")
-    base = state
-    n_echo = len(base.kinds)
-    base_q = model.split(base.kinds, base.params)
-
-    # -- seafloor reflection model ------------------------------------------
-    def with_seafloor(kind, q0):
-        """Echo 0 refitted with another reflection model, the deeper echoes held."""
-        return fit([kind] + base.kinds[1:], [np.asarray(q0, float)] + base_q[1:], free={0})
-
-    def refined(state):
-        """Joint refit of all echoes from a partial fit (the deeper echoes adapt to the new seafloor)."""
-        return fit(state.kinds, model.split(state.kinds, state.params))
-
-    verdict = {"smooth": p_adequate(base.chi2, base.params.size) > significance}
-    tau0, v0 = base_q[0][0], base_q[0][1]
-    rough = refined(with_seafloor("G0", [tau0, v0, 0.0]))
-    extra = p_extra(base.chi2, rough.chi2) < significance
-    verdict["rough"] = p_adequate(rough.chi2, rough.params.size) > significance
-    seafloor = base
-    status0, reason0 = "smooth", None
-    if extra or not verdict["smooth"]:
-        best = {}
-        if transitional_beds:
-            wavelength = c_ramp / chirp.centre_hz
-            for kind in ("T0", "GT0"):
-                trials = []
-                for dx in (0.08, 0.2, 0.4):
-                    for r1 in (0.0, 0.5 * v0):
-                        big_l = math.atanh(float(np.clip(v0 - r1, -0.9, 0.9)))
-                        # the bed's reflection is centred half-way down it: start the top one bed-crossing earlier
-                        tau_top = tau0 - dx * wavelength / c_ramp * 1e3
-                        q = [tau_top, r1, big_l, dx * wavelength * 100.0] + ([0.0] if kind == "GT0" else [])
-                        trials.append(with_seafloor(kind, q))
-                best[kind] = refined(min(trials, key=lambda s: s.chi2))
-            verdict["transitional"] = p_adequate(best["T0"].chi2, best["T0"].params.size) > significance
-            verdict["rough+transitional"] = p_adequate(best["GT0"].chi2, best["GT0"].params.size) > significance
-        if verdict["rough"] and not verdict.get("transitional", False):
-            seafloor, status0 = rough, "rough"
-        else:
-            status0 = "unresolvable"
-            if not transitional_beds:
-                what = ("neither a smooth nor a rough interface explains it within the noise "
-                        "(a transitional bed would, but transitional_beds is off)")
-            elif verdict["rough"]:
-                what = "a rough interface and a transitional bed explain it equally well"
-            elif verdict["transitional"] or verdict["rough+transitional"]:
-                what = "it needs a transitional bed of intermediate thickness, under which the roughness is not assessable"
-            else:
-                what = "no smooth, rough or transitional seafloor model explains it within the noise"
-            reason0 = (f"echo 0 at {tau0:.3f} ms: the seafloor reflection changes with frequency and {what}: "
-                       f"roughness and reflection loss are not resolvable (Rakotonarivo §5)")
-            candidates = [rough] + [best[k] for k in ("T0", "GT0") if k in best]
-            adequate = [c for c in candidates if p_adequate(c.chi2, c.params.size) > significance]
-            seafloor = min(adequate or candidates, key=lambda s: s.chi2)
-
-    # -- deeper echoes: is each one's spectrum linear in dB? ------------------
-    # joint refit; a seafloor read with a transitional bed is held (its parameters are not reported)
-    deep = set(range(1, n_echo))
-    hold_seafloor = seafloor.kinds[0] in ("T0", "GT0")
-    final = fit(seafloor.kinds, model.split(seafloor.kinds, seafloor.params), deep if hold_seafloor else None)
-    if hold_seafloor:
-        final.cov[:_PARAMS[seafloor.kinds[0]], :_PARAMS[seafloor.kinds[0]]] = \
-            seafloor.cov[:_PARAMS[seafloor.kinds[0]], :_PARAMS[seafloor.kinds[0]]]
-    fq = model.split(final.kinds, final.params)
-    flagged = set()
-    for i in range(1, n_echo):
-        kinds = list(final.kinds)
-        kinds[i] = "DG"
-        qs = [np.array(q, float) for q in fq]
-        qs[i] = np.concatenate([qs[i], [0.0]])
-        if p_extra(final.chi2, fit(kinds, qs, free={i}).chi2) < significance:
-            flagged.add(i)
-    if flagged:   # refit with the extra f^2 term on those echoes: their f -> 0 amplitude is then sound for stripping
-        kinds = ["DG" if i in flagged else k for i, k in enumerate(final.kinds)]
-        qs = [np.concatenate([q, [0.0]]) if i in flagged else np.array(q, float) for i, q in enumerate(fq)]
-        seafloor_cov = final.cov[:_PARAMS[kinds[0]], :_PARAMS[kinds[0]]].copy()
-        final = fit(kinds, qs, deep if hold_seafloor else None)
-        if hold_seafloor:
-            final.cov[:_PARAMS[kinds[0]], :_PARAMS[kinds[0]]] = seafloor_cov
-        fq = model.split(final.kinds, final.params)
-
-    # -- estimates ------------------------------------------------------------
-    offsets = np.cumsum([0] + [_PARAMS[k] for k in final.kinds])
-    std = np.sqrt(np.clip(np.diag(final.cov), 0, None))
-    echoes = []
-    stripping = 1.0
-    stripped_note = None
-    for i in range(n_echo):
-        o = offsets[i]
-        q = fq[i]
-        tau, tau_std = q[0] * 1e-3, std[o] * 1e-3
-        if i == 0:
-            if status0 in ("smooth", "rough"):
-                refl, refl_std = float(q[1]), float(std[o + 1])
-                sig = sig_std = None
-                if status0 == "rough":   # exp(-P^2/2) = exp(-g f^2): sigma = sqrt(g/2) c1 / (2 pi 1000)
-                    gamma, gamma_std = float(q[2]), float(std[o + 2])
-                    sig = math.sqrt(gamma / 2.0) * water_sound_speed_m_s / (2 * math.pi * 1000.0)
-                    sig_std = sig * gamma_std / (2 * gamma) if gamma > 0 else math.inf
-                echoes.append(EchoEstimate(0, tau, tau_std, refl, refl_std, status0,
-                                           sig, None if sig is None else 0.75 * sig,
-                                           sig_std, None if sig is None else 0.75 * sig_std))
-                stripping *= 1 - refl ** 2
-            else:
-                echoes.append(EchoEstimate(0, tau, tau_std, None, None, status0, reason=reason0))
-                v_band = float(base_q[0][1])
-                stripping *= 1 - v_band ** 2
-                stripped_note = ("approximate: the transmission through the seafloor uses its band-average "
-                                 "reflection (a transitional bed transmits almost fully)")
-            continue
-        if i in flagged:
-            echoes.append(EchoEstimate(i, tau, tau_std, None, None, "frequency-dependent",
-                                       reason=(f"echo {i} at {q[0]:.3f} ms: its spectrum is not linear in dB "
-                                               f"(rough or graded interface): its reflection and the attenuation "
-                                               f"above it are not separable")))
-            stripping *= 1 - float(q[1] / stripping) ** 2
-            stripped_note = (f"approximate: the transmission through interface {i} uses the low-frequency limit "
-                             f"of its frequency-dependent reflection")
-            continue
-        refl = float(q[1] / stripping)
-        echoes.append(EchoEstimate(i, tau, tau_std, refl, float(std[o + 1] / stripping), "smooth",
-                                   note=stripped_note))
-        stripping *= 1 - refl ** 2
-
-    layers = []
-    for i in range(n_echo - 1):
-        oa, ob = offsets[i], offsets[i + 1]
-        dt = (fq[i + 1][0] - fq[i][0]) * 1e-3
-        dt_std = math.sqrt(max(final.cov[oa, oa] + final.cov[ob, ob] - 2 * final.cov[oa, ob], 0.0)) * 1e-3
-        c = float(c_layers[i]) if i < len(c_layers) else float(water_sound_speed_m_s)
-        thickness = c * dt / 2
-        bad = sorted({i, i + 1} & flagged)
-        if bad:
-            layers.append(LayerEstimate(i + 1, dt, dt_std, c, thickness, None, None, None, None,
-                                        reason=f"layer {i + 1}: attenuation not separable from the frequency-dependent "
-                                               f"reflection of echo {bad[0]}"))
-            continue
-        s_b, var_b = fq[i + 1][2], final.cov[ob + 2, ob + 2]
-        if i == 0:
-            s_a, var_a, cov_ab = 0.0, 0.0, 0.0
-        else:
-            s_a, var_a, cov_ab = fq[i][2], final.cov[oa + 2, oa + 2], final.cov[oa + 2, ob + 2]
-        slope = float(s_b - s_a)
-        slope_std = math.sqrt(max(var_a + var_b - 2 * cov_ab, 0.0))
-        layers.append(LayerEstimate(i + 1, dt, dt_std, c, thickness, slope, slope_std,
-                                    slope / (c * dt), slope_std / (c * dt)))
-    reduced = final.chi2 / (n_res - final.params.size)
-    verdict = {k: bool(v) for k, v in verdict.items()}
-    return InversionResult(tuple(echoes), tuple(layers), float(noise_std), noise_dof, float(reduced), verdict)
+    require(math.isfinite(p0) and p0 != 0, OptionError, f"p0 must be finite and non-zero, got {p0!r}")
+    job = _Inversion(yc, chirp, float(sample_rate_hz), float(t0_s), float(p0), float(water_sound_speed_m_s),
+                     [float(c) for c in (layer_sound_speeds_m_s or [])], noise_std, false_alarm, significance)
+    base = job.detect(int(max_echoes))
+    seafloor, status0, reason0, verdict = job.seafloor(base, transitional_beds)
+    final, flagged = job.deeper(seafloor)
+    echoes, layers = job.estimates(final, status0, reason0, float(job.split(base)[0][1]), flagged)
+    reduced = final.chi2 / (job.n_res - final.params.size)
+    return InversionResult(echoes, layers, job.noise_std, job.noise_dof, float(reduced), verdict)

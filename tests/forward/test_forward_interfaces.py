@@ -114,8 +114,11 @@ def test_rough_seafloor_echo_is_the_smooth_echo_times_the_roughness_factor(regim
 
 def test_echo_below_a_rough_interface_loses_exp_minus_p_t_squared_both_ways():
     freq = np.linspace(1e3, 15e3, 15)
-    layers = lambda sigma: Seabed((water_column(20.0), Layer(3.0, 1600.0, 1300.0, top=Interface(sigma, "fair")),  # noqa: E731
-                                   Layer(math.inf, 1800.0, 1700.0)))
+
+    def layers(sigma):
+        return Seabed((water_column(20.0), Layer(3.0, 1600.0, 1300.0, top=Interface(sigma, "fair")),
+                       Layer(math.inf, 1800.0, 1700.0)))
+
     ratio = layer_echoes(layers(0.01), freq).amplitudes[1] / layer_echoes(layers(0.0), freq).amplitudes[1]
     pt = 2.5 * 0.01 * 2 * np.pi * freq * (1 / 1500.0 - 1 / 1600.0)     # eq. 8 at normal incidence
     np.testing.assert_allclose(ratio, np.exp(-pt ** 2), rtol=1e-13)   # t and t' each exp(-P_T^2/2)
