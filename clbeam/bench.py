@@ -115,7 +115,7 @@ def peak_agreement(got_cf: np.ndarray, exact_cf: np.ndarray, threshold: float) -
 
 def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGrid | None = None,
                   cases=DEFAULT_CASES, repeats: int = 3, reference_stride: int = 40, threshold: float = 0.25,
-                  default_mode: str = "linear", progress=None) -> BenchResult:
+                  default_mode: str = "cubic", progress=None) -> BenchResult:
     """Benchmark every case on ``ping`` (see the module docstring for what is measured).
 
     Parameters

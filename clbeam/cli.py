@@ -47,8 +47,9 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
     from .engine import INTERP_MODES
 
     g = p.add_argument_group("imaging")
-    g.add_argument("--interp", default="linear", choices=[m for m in INTERP_MODES],
-                   help="interpolation mode (default linear); 'exact' runs on the reference backend only")
+    g.add_argument("--interp", default="cubic", choices=[m for m in INTERP_MODES],
+                   help="interpolation mode (default cubic: see the README's run-time/error table); "
+                        "'exact' runs on the reference backend only")
     g.add_argument("--upsample", type=int, default=1, metavar="N", help="FFT upsampling of the analytic signal (default 1)")
     g.add_argument("--outputs", default="intensity,cf", metavar="LIST",
                    help="comma-separated outputs: intensity, cf, sums (default intensity,cf)")
@@ -81,6 +82,16 @@ def grid_from_args(args, max_range_default: float):
     return PolarGrid.regular(range_res_m=args.range_res, angle_res_deg=args.angle_res,
                              max_range_m=args.max_range if args.max_range is not None else max_range_default,
                              min_range_m=args.min_range, angles_deg=tuple(args.angles))
+
+
+def remove_partial(path: Path) -> None:
+    """Delete an output file or Zarr folder left incomplete by an error."""
+    import shutil
+
+    if path.is_dir():
+        shutil.rmtree(path, ignore_errors=True)
+    elif path.exists():
+        path.unlink()
 
 
 # -- subcommands -------------------------------------------------------------
@@ -117,12 +128,16 @@ def cmd_image(args) -> int:
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         peaks = []
         t0 = time.perf_counter()
-        with ImageWriter(args.output, grid, len(pings), variables, attrs) as writer:
-            for ping in progress(pings, total=len(pings), desc="imaging", quiet=args.quiet):
-                img = imager.image(ping)
-                writer.write(ping.index, img, latitude=ping.latitude_deg, longitude=ping.longitude_deg,
-                             heading=ping.heading_deg)
-                peaks.extend(img.peaks)
+        try:
+            with ImageWriter(args.output, grid, len(pings), variables, attrs) as writer:
+                for ping in progress(pings, total=len(pings), desc="imaging", quiet=args.quiet):
+                    img = imager.image(ping)
+                    writer.write(ping.index, img, latitude=ping.latitude_deg, longitude=ping.longitude_deg,
+                                 heading=ping.heading_deg)
+                    peaks.extend(img.peaks)
+        except BaseException:
+            remove_partial(Path(args.output))  # no half-written image file left behind
+            raise
         if args.peaks:
             write_peaks_csv(peaks, args.peaks)
     dt = time.perf_counter() - t0

@@ -11,14 +11,15 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .engine import BeamformInput, Sums, get_engine, interp_mode
-from .engine.common import check_outputs
-from .errors import ClbeamError, GeometryError, OptionError, require
+from .engine.common import cell_windows, check_outputs
+from .errors import ClbeamError, GeometryError, GridError, OptionError, require
 from .geometry import PolarGrid, check_positions, to_earth_frame
 from .ping import Ping
 from .io import PEAK_COLUMNS
@@ -56,7 +57,7 @@ class ImagingOptions:
         per ping from the first strong return at nadir.
     """
 
-    interp: str = "linear"
+    interp: str = "cubic"
     upsample: int = 1
     outputs: tuple = ("intensity", "cf")
     threshold: float = DEFAULT_THRESHOLD
@@ -140,6 +141,7 @@ class Imager:
                  device=None, engine=None):
         self.grid = grid
         self.options = options or ImagingOptions()
+        check_grid_fits_memory(grid, self.options)
         self.engine = engine if engine is not None else get_engine(backend, device=device,
                                                                    precision=self.options.precision)
 
@@ -215,6 +217,7 @@ class Imager:
             if depth is None:
                 depth = pick_seabed_depth_m(inp)
             range_window_m = seabed_window_m(self.grid, depth, self.options.seabed_band_m)
+        check_grid_reaches_record(inp, self.grid)
         t0 = time.perf_counter()
         outs = set(self.options.outputs)
         sums = self.engine.beamform(inp, self.grid, interp=self.options.interp, outputs=outs | {"intensity"} if "cf" in outs else outs,
@@ -259,6 +262,33 @@ class Imager:
                     row["heading_deg"] = ping.heading_deg
             rows.append(row)
         return rows
+
+
+def check_grid_fits_memory(grid: PolarGrid, options: ImagingOptions, *, fraction: float = 0.5) -> None:
+    """Raise :class:`GridError` when one ping's output arrays would need more
+    than ``fraction`` of this machine's memory (host memory per ping is about
+    ``n_cells x`` 8 bytes per output plus 16 for CF smoothing and peaks)."""
+    per_cell = 8 * (len(options.outputs) + 3 * ("sums" in options.outputs)) + 16
+    need = grid.n_cells * per_cell
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return
+    require(need <= fraction * total, GridError,
+            f"a grid of {grid.shape[0]} angles x {grid.shape[1]} ranges ({grid.n_cells:.3g} cells) needs "
+            f"{need / 2**30:.1f} GiB per ping, more than {fraction:.0%} of this machine's {total / 2**30:.1f} GiB; "
+            "use a coarser grid or a smaller window")
+
+
+def check_grid_reaches_record(inp: BeamformInput, grid: PolarGrid) -> None:
+    """Raise :class:`GridError` when no cell of ``grid`` can be imaged from
+    the record (every travel time before its first or after its last sample)."""
+    win = cell_windows(inp, grid, interp_mode("nearest"))
+    if inp.n_channels and not np.any(win[:, 1] > win[:, 0]):
+        t_end = inp.t0_s + (inp.n_samples - 1) / inp.sample_rate_hz
+        c = inp.sound_speed_m_s
+        raise GridError(f"grid ranges {grid.ranges_m[0]:g}-{grid.ranges_m[-1]:g} m lie outside the record, which "
+                        f"reaches ranges {0.5 * c * inp.t0_s:g}-{0.5 * c * t_end:g} m")
 
 
 def pick_seabed_depth_m(inp: BeamformInput, *, below_peak_db: float = 20.0) -> float:

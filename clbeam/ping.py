@@ -24,6 +24,8 @@ log = logging.getLogger(__name__)
 FORMAT = "ping-1"
 SOUND_SPEED_RANGE_M_S = (1300.0, 1700.0)
 MAX_ABS_ROLL_DEG = 45.0
+#: largest distance (m) of an element or the source from the array reference point
+MAX_OFFSET_M = 100.0
 
 
 @dataclass(frozen=True)
@@ -258,6 +260,10 @@ class PingFile:
             v = self._var(comp, ((),), required=req)
             src.append(float(self._numeric(comp, v)) if v is not None else 0.0)
         self.source_pos_m = np.array(src)
+        for name, pos in (("element", self.element_pos_m), ("source", self.source_pos_m)):
+            reach = float(np.max(np.abs(pos)))
+            self._need(reach <= MAX_OFFSET_M, f"{name} positions reach {reach:g} m from the reference point, "
+                       f"expected within {MAX_OFFSET_M:g} m (a hull-mounted array)")
 
         c = self._numeric("sound_speed", self._var("sound_speed", (("ping",), ())))
         lo, hi = SOUND_SPEED_RANGE_M_S
@@ -307,6 +313,8 @@ class PingFile:
         if "tx_waveform" in ds.variables:
             w = self._numeric("tx_waveform", self._var("tx_waveform", (("tx_sample",),)))
             self._need(w.size > 0 and float(np.dot(w, w)) > 0, "variable 'tx_waveform' is empty or all zero")
+            self._need(w.size <= self.n_samples, f"variable 'tx_waveform' has {w.size} samples, more than the "
+                       f"record's {self.n_samples}")
             return Pulse(waveform=w)
         names = ("pulse_f0", "pulse_f1", "pulse_duration")
         present = [n for n in names if n in ds.variables]
@@ -316,7 +324,9 @@ class PingFile:
         self._need(not missing, f"missing variable '{missing[0]}' (the LFM pulse needs {', '.join(names)})" if missing else "")
         f0, f1, dur = (float(self._numeric(n, self._var(n, ((),)))) for n in names)
         nyq = self.sample_rate_hz / 2
-        self._need(dur > 0, f"variable 'pulse_duration' is {dur:g} s, expected > 0")
+        record_s = self.n_samples / self.sample_rate_hz
+        self._need(0 < dur <= record_s, f"variable 'pulse_duration' is {dur:g} s, expected > 0 and no longer "
+                   f"than the record ({record_s:g} s)")
         self._need(0 <= min(f0, f1) and max(f0, f1) < nyq,
                    f"pulse band {f0:g}-{f1:g} Hz must lie within 0-{nyq:g} Hz (half the sample rate)")
         return Pulse(f0_hz=f0, f1_hz=f1, duration_s=dur)

@@ -527,7 +527,8 @@ class Scene:
     def to_dict(self) -> dict:
         """The scene as plain data (the ``scene_json`` attribute of a simulated file)."""
         d = dataclasses.asdict(self)
-        d["targets"] = [dict(kind=_TARGET_KINDS_INV[type(t)], **dataclasses.asdict(t)) for t in self.targets]
+        del d["targets"]
+        d["target"] = [dict(kind=_TARGET_KINDS_INV[type(t)], **dataclasses.asdict(t)) for t in self.targets]
         return d
 
 
@@ -867,8 +868,10 @@ class _Accumulator:
         """Add steps of height ``w`` at record sample ``t`` (both ``(S, C)``)."""
         if self.stp is None:
             self.stp = np.zeros_like(self.imp)
-        # a one-sample box starting at t - 1/2 integrates to a ramp centred on t
-        self._deposit(self.stp, t - 0.5, w, self.box_cols, clip=True)
+        # a one-sample box starting at t, summed, is a step at t: the running
+        # sum 1/(1 - e^{-jΩ}) = e^{jΩ/2}/(jΩ sinc(Ω/2π)) undoes the box's half
+        # sample delay and its sinc, leaving e^{-jΩt}/(jΩ)
+        self._deposit(self.stp, t, w, self.box_cols, clip=True)
 
     def _deposit(self, out, t, w, cols, *, clip: bool) -> None:
         k = np.floor(t)
@@ -1214,20 +1217,12 @@ class Simulator:
         span = 2 * (abs(x_hi - t.x_m) + abs(x_lo - t.x_m)) + 100.0
         s = np.arange(-span, span, 0.5)
         x, _, d = self._arc(t, s)
+        # heading linear in s: |d| < 80° is one interval, on which x grows
+        # monotonically, so the points kept form one stretch
         ok = (x >= x_lo) & (x <= x_hi) & (np.abs(d) < np.radians(80))
         require(bool(ok.any()), OptionError, f"target '{t.name}' never comes near the track")
-        # the contiguous stretch around the reference point
         idx = np.flatnonzero(ok)
-        centre = int(np.argmin(np.abs(s)))
-        start = idx[0]
-        stop = idx[-1]
-        breaks = np.flatnonzero(np.diff(idx) > 1)
-        for b in breaks:
-            if idx[b] < centre:
-                start = idx[b + 1]
-            elif stop == idx[-1]:
-                stop = idx[b]
-        return float(s[start]), float(s[stop])
+        return float(s[idx[0]]), float(s[idx[-1]])
 
     def _line_crossing_coarse(self, t: LineTarget, along_m: float) -> tuple[float, float, float]:
         """``(y, z, heading_deg)`` of a line where it crosses ``x = along_m`` (NaN if never)."""
@@ -1250,8 +1245,10 @@ class Simulator:
         if spacing is None:
             # from the stretch the whole line can see, not the pings asked for,
             # so that a ping is the same whichever pings are made
-            track = self.scene.survey.pings * self.scene.survey.step_m
-            a0, a1 = self._arc_extent(t, -2 * self.max_range_m, track + 2 * self.max_range_m)
+            n_line = max(self.scene.survey.pings, int(self.indices.max()) + 1)
+            track = (n_line - 1) * self.scene.survey.step_m
+            x_ext = self.max_range_m * self.u_cut / math.sqrt(1 - self.u_cut ** 2)
+            a0, a1 = self._arc_extent(t, -x_ext - 10.0, track + x_ext + 10.0)
             _, _, d = self._arc(t, np.linspace(a0, a1, 1025))
             wl_min = self.c / (1.05 * self.scene.sonar.pulse_f1_hz)
             max_cos = min(1.0, self.u_cut + float(np.max(np.abs(np.sin(d)))))

@@ -130,3 +130,20 @@ def test_seabed_band_computes_only_the_band_and_keeps_its_values():
     np.testing.assert_array_equal(band.cf[inside], full.cf[inside])
     assert np.all(band.intensity[outside] == 0)
     assert outside.mean() > 0.5  # most of the grid was skipped
+
+
+def test_grid_outside_the_record_is_an_error_not_an_empty_image():
+    from clbeam.errors import GridError
+
+    ping = point_ping(polar_point(R0, A0), record_s=0.2)  # the record reaches c (n - 1) / (2 fs) = 149.98 m
+    far = PolarGrid.regular(range_res_m=1, angle_res_deg=1, min_range_m=400, max_range_m=500, angles_deg=(-10, 10))
+    with pytest.raises(GridError, match=r"grid ranges 400-500 m lie outside the record, which reaches ranges 0-149.98"):
+        Imager(far).image(ping)
+
+
+def test_absurdly_large_grid_is_refused_before_allocating():
+    from clbeam.errors import GridError
+
+    huge = PolarGrid(np.arange(0, 200_000, 0.01), np.linspace(-80, 80, 20_001))
+    with pytest.raises(GridError, match="GiB per ping"):
+        Imager(huge)
