@@ -224,8 +224,8 @@ class Imager:
                                     range_window_m=range_window_m)
         t["image_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        # undo the power-of-two normalisation exactly, in float64
-        intensity = None if sums.intensity is None else np.ldexp(sums.intensity.astype(np.float64), 2 * scale_exp)
+        # undo the power-of-two normalisation exactly (float64 only where float32 could overflow)
+        intensity = None if sums.intensity is None else rescale(sums.intensity, 2 * scale_exp)
         if sums.s is not None:
             sums.s = sums.s.astype(np.complex128) * np.ldexp(1.0, scale_exp)
             sums.q = np.ldexp(sums.q.astype(np.float64), 2 * scale_exp)
@@ -315,6 +315,17 @@ def seabed_window_m(grid: PolarGrid, depth_m: float, band_m: tuple) -> np.ndarra
     lo = np.maximum(depth_m - above, 0.0) / cos_t
     hi = (depth_m + below) / cos_t
     return np.stack([lo, hi], axis=1)
+
+
+def rescale(values: np.ndarray, exponent: int) -> np.ndarray:
+    """``values * 2**exponent`` exactly: in place in float32 when the result
+    stays far inside float32's range, in float64 otherwise."""
+    if exponent == 0:
+        return values
+    if values.dtype == np.float32 and abs(exponent) < 100:
+        values *= np.float32(2.0**exponent)
+        return values
+    return np.ldexp(values.astype(np.float64), exponent)
 
 
 def amplitude_exponent(data: np.ndarray) -> int:

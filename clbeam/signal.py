@@ -72,9 +72,12 @@ def compress_analytic(samples: np.ndarray, replica: np.ndarray) -> np.ndarray:
     if any_bad:
         x = np.where(bad, 0.0, x)
     nfft = scipy.fft.next_fast_len(n + m - 1)
-    spec = scipy.fft.fft(x, nfft, axis=-1) * np.conj(scipy.fft.fft(r, nfft))
-    spec *= analytic_weights(nfft) / energy
-    y = scipy.fft.ifft(spec, axis=-1)[..., :n]
+    # real-input FFT of the channels; the analytic spectrum is its positive
+    # half (DC and Nyquist once, the rest doubled) with zeros above
+    half = scipy.fft.rfft(x, nfft, axis=-1, workers=-1) * np.conj(scipy.fft.rfft(r, nfft)) / energy
+    spec = np.zeros(x.shape[:-1] + (nfft,), dtype=np.complex128)
+    spec[..., :half.shape[-1]] = half * analytic_weights(nfft)[:half.shape[-1]]
+    y = scipy.fft.ifft(spec, axis=-1, workers=-1)[..., :n]
     if any_bad:
         # y[k] uses x[k .. k+m-1]: it is corrupted when any of those was bad.
         hits = np.cumsum(np.concatenate([np.zeros(bad.shape[:-1] + (1,)), bad, np.zeros(bad.shape[:-1] + (m,))], axis=-1), axis=-1)

@@ -82,7 +82,7 @@ def test_extreme_amplitudes_scale_the_intensity_exactly(scale):
     # scale is not a power of two: the float32 data round differently, so the
     # results agree to float32 sums over 64 channels (64 eps ~ 8e-6), not exactly
     eps64ch = 64 * np.finfo(np.float32).eps
-    np.testing.assert_allclose(b.intensity, a.intensity * scale**2, rtol=2 * eps64ch)
+    np.testing.assert_allclose(b.intensity, a.intensity.astype(np.float64) * scale**2, rtol=2 * eps64ch)
     np.testing.assert_allclose(b.cf, a.cf, atol=eps64ch)
     assert np.isfinite(b.intensity).all() and b.intensity.max() > 0
 
