@@ -1,4 +1,4 @@
-"""Subcommands beyond image/peaks/devices: simulate, demo, bench, forward.
+"""Subcommands beyond image/peaks/devices: simulate, demo, bench, forward, profile.
 
 Each registrar is ``register(subparsers, add_common_options)``; the CLI calls
 them all when it builds its parser.
@@ -113,4 +113,10 @@ def register_forward(sub, common) -> None:
     add_parser(sub, common)
 
 
-REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward]
+def register_profile(sub, common) -> None:
+    from .profile import register_profile as register
+
+    register(sub, common)
+
+
+REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward, register_profile]

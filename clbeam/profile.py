@@ -228,6 +228,15 @@ class VerticalBeam:
 
 
 # -- SEG-Y -------------------------------------------------------------------------
+def _segyio():
+    """The segyio module (the optional ``segy`` extra), or a one-line error saying how to install it."""
+    try:
+        import segyio
+    except ImportError:
+        raise OptionError("writing SEG-Y needs segyio: pip install 'clbeam[segy]' (or segyio)") from None
+    return segyio
+
+
 def _fits(value: int, bits: int, name: str) -> int:
     """``value`` when it fits a signed ``bits``-bit header field, else 0 (unknown) with a warning."""
     lim = 2 ** (bits - 1)
@@ -281,7 +290,7 @@ def coordinate_fields(latitude_deg: float | None, longitude_deg: float | None) -
     """
     if latitude_deg is None or longitude_deg is None:
         return {}
-    x = int(round(longitude_deg * 3600.0 * 100))
+    x = int(round(longitude_deg * 3600.0 * -COORDINATE_SCALAR))
     y = int(round(latitude_deg * 3600.0 * -COORDINATE_SCALAR))
     return {"SourceGroupScalar": COORDINATE_SCALAR, "CoordinateUnits": COORDINATE_UNITS_ARCSEC,
             "SourceX": x, "SourceY": y, "GroupX": x, "GroupY": y, "CDP_X": x, "CDP_Y": y}
@@ -291,8 +300,7 @@ def text_header(lines: list[str]) -> bytes:
     """A 40-line SEG-Y textual header from up to 38 lines (ASCII, 76 characters
     each, longer ones cut); lines 39-40 are the rev 1 ``SEG Y REV1`` and
     ``END TEXTUAL HEADER``."""
-    import segyio
-
+    segyio = _segyio()
     body = [ln.encode("ascii", "replace").decode("ascii")[:76] for ln in lines[:38]]
     rows = {i + 1: ln for i, ln in enumerate(body)}
     rows[39], rows[40] = "SEG Y REV1", "END TEXTUAL HEADER"
@@ -326,8 +334,7 @@ class SegyProfileWriter:
 
     def __init__(self, path, axis: TraceAxis, n_pings: int, *, analytic: bool = False, text_lines=(),
                  pulse=None, sample_rate_hz: float = 0.0, n_record_samples: int = 0):
-        import segyio
-
+        segyio = _segyio()
         self.path = Path(path)
         self.axis = axis
         self.k = 2 if analytic else 1
@@ -383,9 +390,7 @@ class SegyProfileWriter:
             **coordinate_fields(ping.latitude_deg, ping.longitude_deg),
             **time_fields(ping.time),
         }
-        import segyio
-
-        return {getattr(segyio.TraceField, k): int(v) for k, v in h.items()}
+        return {getattr(_segyio().TraceField, k): int(v) for k, v in h.items()}
 
     def write(self, ping: Ping, beam: BeamTrace) -> None:
         """Write the trace(s) of one ping (float32)."""
@@ -616,6 +621,7 @@ def write_profile(pings_path, segy_path, *, png_path=None, plot: bool = True, ma
     _check_output(segy_path, "SEG-Y file")
     if png is not None:
         _check_output(png, "figure")
+    _segyio()  # before any imaging
     pings_path = Path(pings_path)
     with PingFile(pings_path) as pings:
         axis = TraceAxis.for_file(pings, max_range_m=max_range_m)

@@ -127,15 +127,15 @@ __kernel void beamform(
     const vreal inten = sr * sr + si * si;
     const size_t cell = (size_t)ia * N_RANGE + ir;
 #if WANT_INTENSITY
-    scatter(out_intensity, cell, N_RANGE, inten);
+    SCATTER(real_t, out_intensity, cell, N_RANGE, inten);
 #endif
 #if WANT_CF
-    scatter(out_cf, cell, N_RANGE, select((vreal)0, inten / (m * q), RMASK(m > (real_t)0) & RMASK(q > (real_t)0)));
+    SCATTER(real_t, out_cf, cell, N_RANGE, select((vreal)0, inten / (m * q), RMASK(m > (real_t)0) & RMASK(q > (real_t)0)));
 #endif
 #if WANT_SUMS
-    scatter(out_s, cell, N_RANGE, sr);
-    scatter(out_s, cell + (size_t)n_angle_padded * N_RANGE, N_RANGE, si);
-    scatter(out_q, cell, N_RANGE, q);
-    scatter_int(out_m, cell, N_RANGE, CONVERT_VINT(m));
+    SCATTER(real_t, out_s, cell, N_RANGE, sr);
+    SCATTER(real_t, out_s, cell + (size_t)n_angle_padded * N_RANGE, N_RANGE, si);
+    SCATTER(real_t, out_q, cell, N_RANGE, q);
+    SCATTER(int, out_m, cell, N_RANGE, CONVERT_VINT(m));
 #endif
 }

@@ -48,31 +48,17 @@ typedef CAT(int, VEC) vmask;
 #define CONVERT_VREAL_I(x) CAT(CAT(convert_, REAL_T), VEC)(x)
 #endif
 
-/* out[first + l * stride] = v[l] for every lane */
-inline void scatter(__global real_t *restrict out, size_t first, size_t stride, vreal v)
-{
+/* out[first + l * stride] = v[l] for every lane; T is the element type */
 #if VEC == 1
-    out[first] = v;
+#define SCATTER(T, out, first, stride, v) ((out)[first] = (v))
 #else
-    real_t a[VEC];
-    CAT(vstore, VEC)(v, 0, a);
-#pragma unroll
-    for (int l = 0; l < VEC; ++l)
-        out[first + l * stride] = a[l];
+#define SCATTER(T, out, first, stride, v)                           \
+    do {                                                            \
+        T a_[VEC];                                                  \
+        CAT(vstore, VEC)((v), 0, a_);                               \
+        for (int l_ = 0; l_ < VEC; ++l_)                            \
+            (out)[(first) + (size_t)l_ * (stride)] = a_[l_];        \
+    } while (0)
 #endif
-}
-
-inline void scatter_int(__global int *restrict out, size_t first, size_t stride, vint v)
-{
-#if VEC == 1
-    out[first] = v;
-#else
-    int a[VEC];
-    CAT(vstore, VEC)(v, 0, a);
-#pragma unroll
-    for (int l = 0; l < VEC; ++l)
-        out[first + l * stride] = a[l];
-#endif
-}
 
 #endif

@@ -33,6 +33,8 @@ TIMES = ("2024-02-29T23:59:58.700", "2024-03-01T00:00:02.700", "2024-03-01T00:00
 LAT = (34.3, 34.30007, 34.30014)
 LON = (-119.8, -119.80002, -119.80004)
 RECORD_S = 0.15  # holds the echo of the 20 ms pulse at 100 ms two-way time, with heave
+VALID = np.ones((3, 64), dtype=bool)
+VALID[2, :16] = False  # ping 2: 16 dead channels, so M = 48 and |S| / M still equals the echo amplitude
 
 
 def quiet_common(sp):
@@ -63,6 +65,7 @@ def point_file(tmp_path_factory):
         "roll": (("ping",), np.array(ROLL)), "heave": (("ping",), np.array(HEAVE)),
         "latitude": (("ping",), np.array(LAT)), "longitude": (("ping",), np.array(LON)),
         "ping_time": (("ping",), np.array(TIMES, dtype="datetime64[ns]")),
+        "channel_valid": (("ping", "channel"), VALID),
         "pulse_f0": ((), PULSE.f0_hz), "pulse_f1": ((), PULSE.f1_hz), "pulse_duration": ((), PULSE.duration_s),
     })
     path = tmp_path_factory.mktemp("profile") / "points.nc"
@@ -82,12 +85,13 @@ def profiles(point_file, tmp_path_factory):
 
 
 def expected_peak_amplitude(i):
-    """Mean over channels of the echo amplitude ``a / (|r - s| |r - e_n|)`` of ping ``i`` (scenes.point_ping)."""
+    """Mean over the live channels of the echo amplitude ``a / (|r - s| |r - e_n|)`` of ping ``i`` (scenes.point_ping)."""
     p = point_ping([0.0, 0.0, TARGET_R], roll_deg=ROLL[i], heave_m=HEAVE[i], record_s=0.01)
     el = to_earth_frame(p.element_pos_m, roll_deg=ROLL[i], heave_m=HEAVE[i])
     src = to_earth_frame(p.source_pos_m, roll_deg=ROLL[i], heave_m=HEAVE[i])
     r = np.array([0.0, 0.0, TARGET_R])
-    return float(np.mean(AMPLITUDE / (np.linalg.norm(r - src) * np.linalg.norm(r - el, axis=1))))
+    amp = AMPLITUDE / (np.linalg.norm(r - src) * np.linalg.norm(r - el, axis=1))
+    return float(np.mean(amp[VALID[i]]))
 
 
 def sums_on_trace_axis(path, times_s, interp, engine):
@@ -126,7 +130,7 @@ def test_segy_headers_hold_the_pings_time_axis_navigation_time_and_pulse(point_f
             assert (h[T.TRACE_SAMPLE_COUNT], h[T.TRACE_SAMPLE_INTERVAL]) == (n_expected, 25)
             assert (h[T.SweepFrequencyStart], h[T.SweepFrequencyEnd], h[T.SweepLength], h[T.SweepType]) \
                 == (2000, 9000, 20, 1)
-            assert h[T.NStackedTraces] == 64
+            assert h[T.NStackedTraces] == VALID[i].sum()  # channels used
             # coordinates: arc-seconds (units 2) with a negative scalar = divisor (SEG-Y rev 1)
             assert h[T.CoordinateUnits] == 2 and h[T.SourceGroupScalar] < 0
             scale = 1.0 / -h[T.SourceGroupScalar]
@@ -160,8 +164,8 @@ def test_envelope_peaks_at_a_point_below_at_its_range_whatever_the_roll_and_heav
             # two-way time 2 R / c from the (heave-compensated) source: 100 ms, sample 3520.
             # Without heave compensation ping 1's echo would sit 2 h / c = 0.67 ms (27 samples) later.
             assert times_ms[k] == pytest.approx(2e3 * TARGET_R / C, abs=0.025 + 1e-9)
-            # a coherent sum straight down keeps the echo's full amplitude: roll compensated (at 4-6 degree
-            # of uncompensated roll the 3.5 m array at 9 kHz, beamwidth 2.7 degree, would lose most of it).
+            # a coherent sum straight down keeps the echo's full amplitude: roll compensated (with the roll
+            # ignored, the 4 and -6 degree pings keep only 26 % and 14 % of it).
             # Tolerance 0.5 %: Lanczos-8 interpolation at 9 kHz / 40 kHz (about 2e-4) and the
             # compressed LFM's peak, which equals the amplitude to about 1e-4.
             assert trace[k] == pytest.approx(expected_peak_amplitude(i), rel=5e-3)
@@ -260,6 +264,17 @@ def test_bad_input_is_one_line_and_exit_2(case, point_file, tmp_path, capsys, cl
     err = capsys.readouterr().err.strip()
     assert rc == 2
     assert err.startswith("clbeam: error:") and "\n" not in err
+    assert not out.exists()
+
+
+def test_missing_segyio_is_one_line_naming_the_extra(point_file, tmp_path, capsys, monkeypatch, cli_with_profile):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "segyio", None)  # import segyio now raises ImportError
+    out = tmp_path / "p.sgy"
+    rc = cli_with_profile(["profile", str(point_file), "-o", str(out), "-q"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "segyio" in err and "clbeam[segy]" in err and "\n" not in err
     assert not out.exists()
 
 

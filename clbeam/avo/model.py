@@ -376,10 +376,9 @@ def roughness_cross_section(grazing_deg, sediment: SedimentParams, frequency_hz:
     """
     t = _grazing_rad(grazing_deg)
     k = _wavenumber(frequency_hz, sound_speed_water_m_s)
-    rho, kap = sediment.rho, _kappa(sediment)
-    p = vertical_wavenumber_ratio(grazing_deg, sediment)
-    y = ((rho - 1.0) ** 2 * np.cos(t) ** 2 + rho ** 2 - kap ** 2) / (rho * np.sin(t) + p) ** 2
-    return np.sin(t) ** 4 * np.abs(y) ** 2 * _kirchhoff_shape(t, sediment, k)
+    r90 = abs((sediment.rho - _kappa(sediment)) / (sediment.rho + _kappa(sediment)))
+    # (sin^2 |Y|)^2 = (h |R(90)|)^2 with h the perturbation/nadir kernel ratio
+    return (perturbation_kernel_ratio(grazing_deg, sediment) * r90) ** 2 * _kirchhoff_shape(t, sediment, k)
 
 
 def volume_cross_section(grazing_deg, sediment: SedimentParams) -> np.ndarray:
