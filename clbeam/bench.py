@@ -2,7 +2,7 @@
 
 What is timed: ``engine.beamform`` (upload, kernel, read-back of intensity
 and CF) on the full grid, best of ``repeats`` after a warm-up that builds the
-kernel; the whole ping (raw samples → intensity, CF, smoothed CF, peaks)
+kernel, plus the FFT upsampling for the upsampled modes; the whole ping (raw samples → intensity, CF, smoothed CF, peaks)
 through :class:`~clbeam.imager.Imager`.  Baselines in the same run: the
 float64 NumPy reference (timed on every ``reference_stride``-th angle row and
 scaled by cells) and a numba-parallel linear delay-and-sum on the full grid.
@@ -28,6 +28,7 @@ from .engine import get_engine
 from .geometry import PolarGrid
 from .imager import Imager, ImagingOptions
 from .postprocess import coherence_peaks, hann_smooth
+from .signal import upsample_analytic
 
 log = logging.getLogger(__name__)
 
@@ -172,6 +173,8 @@ def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGr
         say(f"{mode} x{up} {precision}")
         eng.beamform(inp, grid, interp=mode, outputs=("intensity", "cf"))  # build
         t = best_time(lambda: eng.beamform(inp, grid, interp=mode, outputs=("intensity", "cf")), repeats)
+        if up > 1:  # the FFT upsampling is part of the mode's cost
+            t += best_time(lambda: upsample_analytic(inp1.data, up), 1)
         acc = eng.beamform(inp, accuracy_grid, interp=mode, outputs=("intensity", "cf"))
         prec, rec = peak_agreement(acc.cf, exact.cf, threshold)
         rate = grid.n_cells * n_ch / t
@@ -249,7 +252,7 @@ def plot_pareto(result: BenchResult, path) -> None:
     pts = sorted(((r.ms_per_ping, r.intensity_error_db, r.label) for r in result.rows))
     front, best = [], np.inf
     for t, e, _ in pts:
-        if e < best:
+        if e < best - 0.1:  # strictly better by more than rounding of the table
             front.append((t, e))
             best = e
     for t, e, label in pts:
