@@ -3,7 +3,8 @@
 The simulator builds what an SBP29-class sonar records on its 64 receive
 elements for a scene: buried pipelines (line scatterers), point scatterers,
 a rough seabed and a rough sub-bottom interface (random scatterers whose
-strength falls with grazing angle as ``sin^m``), the nadir specular echoes of
+strength falls with grazing angle as ``sin^m``, or follows the AVO
+backscatter model of a grain size per province), the nadir specular echoes of
 both interfaces, the first surface multiple and its doublet, and noise, with
 the ship moving along a track and rolling, pitching and heaving.
 
@@ -297,6 +298,39 @@ class Scattering:
         require(self.depth_spread_m >= 0, OptionError, f"scattering.depth_spread_m must be >= 0 m, got {self.depth_spread_m}")
 
 
+SPECULAR_MODELS = ("impedance", "forward")
+"""Values of ``seabed.specular_model``."""
+
+
+@dataclass(frozen=True)
+class Province:
+    """A stretch of the track whose seabed scatters as a sediment of grain size ``mz``.
+
+    The seabed scatterers whose along-track world position lies from
+    ``from_along_track_m`` up to the next province's start get the
+    backscattering strength of the APL-UW TR 9407 model
+    (:func:`clbeam.avo.backscatter_strength_db`) at their grazing angle and
+    the band centre frequency, in place of the ``sin^m`` law.  The first
+    province also covers everything before its start, the last everything
+    after it.
+
+    Attributes
+    ----------
+    from_along_track_m : float
+        Start of the province: distance along the track from the first
+        ping's position (m).
+    mz : float
+        Mean grain size (phi), -1 to 9 (TR 9407 regressions): 1.5 medium
+        sand, 4.5 coarse silt, 6 medium silt, 8 clay.
+    """
+
+    from_along_track_m: float = 0.0
+    mz: float = 1.5
+
+    def __post_init__(self):
+        require(-1.0 <= self.mz <= 9.0, OptionError, f"seabed.province mz must be within -1 to 9 phi, got {self.mz}")
+
+
 @dataclass(frozen=True)
 class Seabed:
     """The water-sediment interface and the sediment above the sub-bottom.
@@ -317,10 +351,26 @@ class Seabed:
         Sediment attenuation at the reference frequency, linear in frequency.
     specular : bool
         Include the nadir specular reflection (image source).
+    specular_model : {"impedance", "forward"}
+        Reflection coefficients of the specular echoes and multiples:
+        ``"impedance"`` the flat-interface impedance contrasts (real,
+        frequency independent); ``"forward"`` the layered coherent forward
+        model (:func:`clbeam.forward.specular_echoes` at normal incidence):
+        frequency dependent, with the sediment's attenuation and the
+        interfaces' roughness loss (Eckart).
+    roughness_m : float
+        RMS height of the seabed's roughness (m) for the forward model's
+        coherent loss; ignored by ``"impedance"``.
     multiple : bool
         Include the first surface multiple (and its doublet with the sub-bottom).
     scattering : Scattering or None
         Diffuse interface scattering.
+    province : tuple of Province
+        Provinces along the track (``[[seabed.province]]`` tables, starts
+        increasing) whose scattering strength follows the AVO backscatter
+        model for their grain size (:class:`Province`); they need a
+        ``[seabed.scattering]`` table for the scatterer density and jitter.
+        Empty: the ``sin^m`` law everywhere.
     """
 
     depth_m: float = 230.0
@@ -331,8 +381,11 @@ class Seabed:
     attenuation_db_per_m: float = 0.15
     attenuation_ref_hz: float = 5000.0
     specular: bool = True
+    specular_model: str = "impedance"
+    roughness_m: float = 0.0
     multiple: bool = True
     scattering: Scattering | None = None
+    province: tuple[Province, ...] = ()
 
     def __post_init__(self):
         require(self.depth_m > 0, OptionError, f"seabed.depth_m must be > 0 m, got {self.depth_m}")
@@ -344,6 +397,14 @@ class Seabed:
         require(self.density_ratio > 0, OptionError, f"seabed.density_ratio must be > 0, got {self.density_ratio}")
         require(self.attenuation_db_per_m >= 0 and self.attenuation_ref_hz > 0, OptionError,
                 "seabed attenuation must be >= 0 dB/m at a reference frequency > 0 Hz")
+        require(self.specular_model in SPECULAR_MODELS, OptionError,
+                f"seabed.specular_model must be one of {', '.join(SPECULAR_MODELS)}, got {self.specular_model!r}")
+        require(self.roughness_m >= 0, OptionError, f"seabed.roughness_m must be >= 0 m, got {self.roughness_m}")
+        starts = [p.from_along_track_m for p in self.province]
+        require(all(b > a for a, b in zip(starts, starts[1:])), OptionError,
+                f"seabed.province from_along_track_m must increase, got {starts}")
+        require(not self.province or self.scattering is not None, OptionError,
+                "seabed.province needs a [seabed.scattering] table (scatterer density and jitter)")
 
 
 @dataclass(frozen=True)
@@ -358,6 +419,9 @@ class SubBottom:
         The lower medium relative to water (for the nadir reflection coefficient).
     specular : bool
         Include its nadir specular reflection.
+    roughness_m : float
+        RMS height of its roughness (m), for ``seabed.specular_model =
+        "forward"``.
     scattering : Scattering or None
         Diffuse scattering of this interface.
     """
@@ -366,6 +430,7 @@ class SubBottom:
     sound_speed_ratio: float = 1.05
     density_ratio: float = 1.6
     specular: bool = True
+    roughness_m: float = 0.0
     scattering: Scattering | None = None
 
     def __post_init__(self):
@@ -373,6 +438,7 @@ class SubBottom:
                 f"subbottom.depth_below_seabed_m must be > 0 m, got {self.depth_below_seabed_m}")
         require(self.sound_speed_ratio > 0 and self.density_ratio > 0, OptionError,
                 "subbottom sound_speed_ratio and density_ratio must be > 0")
+        require(self.roughness_m >= 0, OptionError, f"subbottom.roughness_m must be >= 0 m, got {self.roughness_m}")
 
 
 @dataclass(frozen=True)
@@ -568,6 +634,11 @@ def _convert(hint, value, where: str):
     if hint is str:
         require(isinstance(value, str), OptionError, f"scene key '{where}' must be a string, got {value!r}")
         return value
+    if origin is tuple and typing.get_args(hint) and dataclasses.is_dataclass(typing.get_args(hint)[0]):
+        cls = typing.get_args(hint)[0]
+        require(isinstance(value, (list, tuple)) and all(isinstance(v, dict) for v in value), OptionError,
+                f"scene key '{where}' must be a list of tables, got {value!r}")
+        return tuple(_from_mapping(cls, v, f"{where}[{i}]") for i, v in enumerate(value))
     if hint is tuple:
         require(isinstance(value, (list, tuple)) and all(isinstance(v, (int, float)) for v in value), OptionError,
                 f"scene key '{where}' must be a list of numbers, got {value!r}")
@@ -645,7 +716,7 @@ def load_scene(source: str | os.PathLike | Scene, *, pings: int | None = None, m
     Parameters
     ----------
     source : str, path-like or Scene
-        ``"line1"``, ``"line4"``, ``"point"`` (see :func:`list_scenes`), a
+        ``"line1"``, ``"line4"``, ``"point"``, ``"avo2"`` (see :func:`list_scenes`), a
         ``.toml`` file, or a :class:`Scene` (overrides applied to it).
     pings : int, optional
         Number of pings on the line.
@@ -1047,6 +1118,7 @@ class Simulator:
         x_ext = self.max_range_m * self.u_cut / math.sqrt(1 - self.u_cut ** 2)
         self._x_window = (float(along.min()) - x_ext, float(along.max()) + x_ext)
         self.alpha_np = attenuation_np_per_m_hz(sc.seabed) if sc.seabed is not None else 0.0
+        self._provinces = self._province_tables()
         self._fields = self._make_fields()
         self._lines = [self._line_points(t) if isinstance(t, LineTarget) else None for t in sc.targets]
         self.noise_std = self._noise_std()
@@ -1140,6 +1212,48 @@ class Simulator:
             r = math.hypot(y, z)
             return t.reflectivity * float(t.response(self.fc, self.c)) * math.sqrt(self.c / self.fc * r / 2) / r ** 2
         return 1.0
+
+    # -- seabed provinces ---------------------------------------------------
+    PROVINCE_GRAZING_DEG = np.linspace(0.05, 90.0, 1800)
+    """Grazing angles (degree) at which each province's strength is tabulated
+    (0.05° apart; the model is smooth, linear interpolation in dB)."""
+
+    def _province_tables(self) -> dict | None:
+        """Starts (m) and strength tables (dB at :attr:`PROVINCE_GRAZING_DEG`,
+        band centre) of the seabed provinces; ``None`` without provinces."""
+        sb = self.scene.seabed
+        if sb is None or not sb.province:
+            return None
+        from .avo import backscatter_strength_db
+
+        table = np.stack([backscatter_strength_db(self.PROVINCE_GRAZING_DEG, self.fc, mz=p.mz,
+                                                  sound_speed_water_m_s=self.c) for p in sb.province])
+        return {"start": np.array([p.from_along_track_m for p in sb.province]),
+                "mz": np.array([p.mz for p in sb.province]), "strength_db": table}
+
+    def _province_index(self, x_track_m) -> np.ndarray:
+        """Index of the province at track-frame along-track positions (m)."""
+        start = self._provinces["start"]
+        return np.clip(np.searchsorted(start, np.asarray(x_track_m), side="right") - 1, 0, start.size - 1)
+
+    def province_mz(self, along_m: float) -> float:
+        """Grain size (phi) of the seabed province at ``along_m`` along the
+        track (m); NaN when the scene has no provinces."""
+        if self._provinces is None:
+            return math.nan
+        return float(self._provinces["mz"][self._province_index(along_m)])
+
+    def province_strength_db(self, x_track_m, grazing_rad) -> np.ndarray:
+        """AVO backscattering strength (dB) of the seabed at along-track
+        positions ``x_track_m`` (m) and grazing angles ``grazing_rad``, from
+        the province there, at the band centre frequency."""
+        k = self._province_index(x_track_m)
+        deg = np.clip(np.degrees(np.asarray(grazing_rad, dtype=np.float64)), self.PROVINCE_GRAZING_DEG[0], 90.0)
+        out = np.empty(deg.shape)
+        for j in np.unique(k):
+            sel = k == j
+            out[sel] = np.interp(deg[sel], self.PROVINCE_GRAZING_DEG, self._provinces["strength_db"][j])
+        return out
 
     # -- world-fixed random fields ------------------------------------------
     def _make_fields(self) -> list:
@@ -1374,6 +1488,8 @@ class Simulator:
         sb, sub = sc.seabed, sc.subbottom
         seabed = self._seabed_plane(g)
         surface = _Plane([0.0, 0.0, -sc.sonar.draft_m], [0.0, 0.0, 1.0])
+        if sb.specular_model == "forward":
+            return self._forward_specular_echoes(g, seabed, surface)
         v1 = float(reflection_coefficient(np.pi / 2, sb.density_ratio, sb.sound_speed_ratio))
         paths = []  # (label, planes, amplitude, two-way sediment path in m)
         if sb.specular:
@@ -1394,18 +1510,88 @@ class Simulator:
                 paths.append(("multiple-subbottom", [deep, surface, deep], -v2 * v2, 4 * d))
         sets = []
         for label, planes, amp, path in paths:
-            img = g.source.copy()
-            for p in planes:
-                img = p.mirror(img)
-            rx = g.centre.copy()
-            for p in reversed(planes):
-                rx = p.mirror(rx)
-            ray = rx - g.source
-            u = float(ray @ g.column / np.linalg.norm(ray))
             b = np.array([self.alpha_np * path]) if path > 0 else None
-            sets.append(_Echoes(label=label, pos=img[None, :], amp=np.array([amp]), src_leg=np.zeros(1),
-                                spread=np.ones(1), extra_s=np.zeros(1), u=np.array([u]), b_s=b))
+            sets.append(self._image_source(g, label, planes, amp, b_s=b))
         return sets
+
+    def _image_source(self, g: PingGeometry, label: str, planes: list, amp: float, *, b_s=None,
+                      response=None) -> _Echoes:
+        """The echo of the source mirrored in ``planes`` in turn (amplitude
+        ``amp`` times ``response(f)``, spreading along the unfolded path)."""
+        img = g.source.copy()
+        for p in planes:
+            img = p.mirror(img)
+        rx = g.centre.copy()
+        for p in reversed(planes):
+            rx = p.mirror(rx)
+        ray = rx - g.source
+        u = float(ray @ g.column / np.linalg.norm(ray))
+        return _Echoes(label=label, pos=img[None, :], amp=np.array([amp]), src_leg=np.zeros(1), spread=np.ones(1),
+                       extra_s=np.zeros(1), u=np.array([u]), b_s=b_s, response=response)
+
+    def forward_seabed(self, water_m: float = 1.0):
+        """The scene's seabed as a :class:`clbeam.forward.Seabed`: water
+        (``water_m`` thick, lossless), the sediment (its speed, density,
+        linear attenuation and the seabed roughness) down to the sub-bottom,
+        and the half-space below (or the sediment as the half-space)."""
+        from .forward import Interface, Layer, PowerLawAttenuation, Seabed as LayeredSeabed, water_column
+
+        sb, sub = self.scene.seabed, self.scene.subbottom
+        rho_w = 1000.0
+        k_p = sb.attenuation_db_per_m / (sb.attenuation_ref_hz / 1000.0)  # dB/m/kHz, linear law
+        sediment = dict(sound_speed_m_s=sb.sound_speed_ratio * self.c, density_kg_m3=sb.density_ratio * rho_w,
+                        attenuation=PowerLawAttenuation(k_p, 1.0), top=Interface(roughness_m=sb.roughness_m),
+                        name="sediment")
+        layers = [water_column(water_m, sound_speed_m_s=self.c, density_kg_m3=rho_w)]
+        if sub is None:
+            layers.append(Layer(math.inf, **sediment))
+        else:
+            layers.append(Layer(sub.depth_below_seabed_m, **sediment))
+            layers.append(Layer(math.inf, sub.sound_speed_ratio * self.c, sub.density_ratio * rho_w,
+                                top=Interface(roughness_m=sub.roughness_m), name="subbottom"))
+        return LayeredSeabed(tuple(layers), name=self.scene.name)
+
+    def forward_specular_response(self, f_hz) -> np.ndarray:
+        """``(n_echo, n_freq)`` complex nadir echo factors of the forward model
+        without spreading or delay: ``V_i prod(T T') prod(H^2)`` of the seabed
+        (row 0) and the sub-bottom (row 1), at ``f_hz``."""
+        from .forward import specular_echoes
+
+        e = specular_echoes(self.forward_seabed(), np.asarray(f_hz, dtype=np.float64), incidence_deg=0.0)
+        return e.reflection * e.transmission * e.attenuation
+
+    def _forward_specular_echoes(self, g: PingGeometry, seabed: _Plane, surface: _Plane) -> list[_Echoes]:
+        """The specular echoes and multiples with the forward model's factors
+        (:meth:`forward_specular_response`) as their spectral responses; the
+        surface reflects with -1."""
+        sb, sub = self.scene.seabed, self.scene.subbottom
+
+        def factor(rows, sign):
+            def response(f):
+                # the model is evaluated within the band (the band window
+                # removes everything more than 2 kHz outside it)
+                so = self.scene.sonar
+                r = self.forward_specular_response(np.clip(f, 0.5 * so.pulse_f0_hz, 2.0 * so.pulse_f1_hz))
+                out = sign * np.ones(len(f), dtype=complex)
+                for i in rows:
+                    out = out * r[i]
+                return out
+            return response
+
+        paths = []  # (label, planes, rows of the response multiplied, sign)
+        if sb.specular:
+            paths.append(("seabed", [seabed], (0,), 1.0))
+        if sb.multiple:
+            paths.append(("multiple", [seabed, surface, seabed], (0, 0), -1.0))
+        if sub is not None:
+            deep = seabed.shifted(sub.depth_below_seabed_m * seabed.n[2] / sb.sound_speed_ratio)
+            if sub.specular:
+                paths.append(("subbottom", [deep], (1,), 1.0))
+            if sb.multiple and sub.specular:
+                paths.append(("multiple-doublet", [seabed, surface, deep], (0, 1), -2.0))
+                paths.append(("multiple-subbottom", [deep, surface, deep], (1, 1), -1.0))
+        return [self._image_source(g, label, planes, 1.0, response=factor(rows, sign))
+                for label, planes, rows, sign in paths]
 
     def _field_echo(self, g: PingGeometry, f: dict) -> _Echoes:
         """The random scatterers of one interface that ping ``g`` keeps."""
@@ -1432,7 +1618,10 @@ class Simulator:
         else:
             normal = self._seabed_plane(g).n
             sin_graz = np.abs((pos - g.source) @ normal) / dist
-        sigma = 10 ** (sc.strength_db / 10) * sin_graz ** sc.grazing_exponent
+        if f["layer"] == 1 and self._provinces is not None:
+            sigma = 10 ** (self.province_strength_db(x_t[keep], np.arcsin(np.clip(sin_graz, 0.0, 1.0))) / 10)
+        else:
+            sigma = 10 ** (sc.strength_db / 10) * sin_graz ** sc.grazing_exponent
         amp = g_amp * np.sqrt(sigma / density) * trans
         e = _Echoes(label=f"layer{f['layer']}", pos=pos, amp=amp * self.taper(u), src_leg=dist, spread=dist,
                     extra_s=kw.get("extra_s", np.zeros(len(amp))), u=u, b_s=kw.get("b_s"), rx_tilt=kw.get("rx_tilt"))
@@ -1584,16 +1773,44 @@ class Simulator:
         return out
 
     # -- truth -------------------------------------------------------------------
-    def image_position(self, g: PingGeometry, r: np.ndarray) -> tuple[float, float]:
-        """Where a 2-D imager puts an echo from ``r`` (earth frame, m): the point
-        of the plane ``x = 0`` at the same range from the source and the same
-        direction cosine on the (rolled) receive-array axis."""
+    def image_position(self, g: PingGeometry, r: np.ndarray, *, extra_m: float = 0.0,
+                       rx_tilt: np.ndarray | None = None) -> tuple[float, float]:
+        """Where a 2-D straight-ray imager puts an echo from ``r`` (earth frame, m).
+
+        The point of the plane ``x = 0`` at the echo's apparent range from the
+        source and apparent direction cosine on the (rolled) receive-array
+        axis.  For an echo in the water these are ``|r - s|`` and the straight
+        ray's direction.  A buried echo arrives later and from a slightly
+        different direction (refraction at the seabed, :meth:`_buried`).
+
+        Parameters
+        ----------
+        g : PingGeometry
+            The ping.
+        r : array_like
+            Scatterer position ``(3,)``, earth frame (m).
+        extra_m : float
+            One-way range added by refraction (m): half the refraction delay
+            times the water sound speed.
+        rx_tilt : array_like, optional
+            Refracted minus straight unit ray direction at the array ``(3,)``.
+
+        Returns
+        -------
+        (float, float)
+            ``(y, z)`` of the image point, earth frame (m).
+        """
         q = np.asarray(r, dtype=np.float64) - g.source
-        rng = float(np.linalg.norm(q))
+        dist = float(np.linalg.norm(q))
+        rng = dist + extra_m
+        ray = q / max(dist, 1e-12)
+        if rx_tilt is not None:
+            ray = ray + np.asarray(rx_tilt, dtype=np.float64)
+            ray /= np.linalg.norm(ray)
         phi = math.radians(g.roll_deg)
         axis = np.array([0.0, math.cos(phi), math.sin(phi)])
         down = np.array([0.0, -math.sin(phi), math.cos(phi)])
-        along = float(q @ axis)
+        along = rng * float(ray @ axis)
         p = g.source + along * axis + math.sqrt(max(rng * rng - along * along, 0.0)) * down
         return float(p[1]), float(p[2])
 
@@ -1620,7 +1837,14 @@ class Simulator:
                 out["x"][k], out["y"][k], out["z"][k], out["angle"][k] = 0.0, y, z, ang
                 rel = np.stack([pts["x"] - g.along_m, pts["y"], pts["z"]], axis=1) - g.source
                 nearest = rel[np.argmin(np.einsum("ij,ij->i", rel, rel))] + g.source
-            out["image_y"][k], out["image_z"][k] = self.image_position(g, nearest)
+            refraction = {}
+            if t.burial_m is not None:
+                # the apparent position: the refracted echo arrives later
+                # and from the refracted ray's direction at the array
+                bur = self._buried(g, nearest[None, :], np.array([t.burial_m]),
+                                   np.array([nearest[2] - t.burial_m]))
+                refraction = {"extra_m": 0.5 * self.c * float(bur["extra_s"][0]), "rx_tilt": bur["rx_tilt"][0]}
+            out["image_y"][k], out["image_z"][k] = self.image_position(g, nearest, **refraction)
             out["u"][k] = float(self._direction_cosine(g, nearest[None, :])[1][0])
             if self.scene.seabed is not None and np.isfinite(out["y"][k]):
                 out["seabed_z"][k] = float(self.seabed_z(g.along_m + out["x"][k], out["y"][k]))
@@ -1721,6 +1945,10 @@ class Simulator:
                 "target_kinds": ",".join(_TARGET_KINDS_INV[type(t)] for t in sc.targets),
             },
         )
+        if self._provinces is not None:
+            mz = np.array([self.province_mz(float(i) * sc.survey.step_m) for i in self.indices])
+            ds["truth_province_mz"] = (("ping",), mz, {"units": "phi", "long_name":
+                                                      "grain size of the seabed province under the ship"})
         return ds
 
 
