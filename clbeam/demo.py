@@ -136,8 +136,10 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
             writer.write(ping.index, img, latitude=ping.latitude_deg, longitude=ping.longitude_deg,
                          heading=ping.heading_deg)
             rows.extend(img.peaks)
-            ty = ds["truth_target_y"].values[ping.index]
-            tz = ds["truth_target_z"].values[ping.index]
+            # where a straight-ray image shows each pipe (nearest point, refraction), else its crossing
+            key = "truth_target_image_y" if "truth_target_image_y" in ds.variables else "truth_target_y"
+            ty = ds[key].values[ping.index]
+            tz = ds[key.replace("_y", "_z")].values[ping.index]
             s, o = score_targets(img.peaks, ty, tz, names, ping.index)
             scores += s
             others += o

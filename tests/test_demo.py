@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from clbeam.demo import HIT_DISTANCE_M, run_demo, score_targets, summary_lines
+from clbeam.demo import run_demo, summary_lines
 from clbeam.geometry import PolarGrid
 from clbeam.imager import Imager, ImagingOptions
 from clbeam.ping import PingFile, write_ping_file
@@ -52,20 +52,29 @@ def test_demo_writes_its_files_and_summary(line1):
 
 
 def test_line4_pipe_at_920_m_is_detected(tmp_path):
+    """At 76 degrees from nadir the main-lobe arc through the pipe runs almost
+    vertically, so the coherence maximum wanders along it (the paper's main-lobe
+    highlights): 1 degree of arc is 4 m across.  The detection is scored on the
+    arc: a peak within one range cell pair (0.5 m) in slant range and 1 degree
+    of the pipe, and its horizontal offset stays within R cos(76) * 1 degree.
+    (The angle of the intensity maximum is no test here: the array's angular
+    resolution at 76 degrees, lambda / (D cos 76), is about 18 degrees.)"""
     ds = simulate(load_scene("line4", pings=1))
     path = write_ping_file(ds, tmp_path / "line4.nc")
-    names = list(ds["target"].values)
     k = int(np.argmax(ds["truth_target_y"].values[0]))  # the farthest to starboard: pipeline C
-    ty, tz = ds["truth_target_y"].values[0, k], ds["truth_target_z"].values[0, k]
+    ty, tz = ds["truth_target_image_y"].values[0, k], ds["truth_target_image_z"].values[0, k]
     assert 900 < ty < 940
     assert np.rad2deg(np.arctan2(ty, tz)) == pytest.approx(76, abs=1.0)  # the paper's 76 degrees from nadir
     grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, min_range_m=880, max_range_m=1000,
                              angles_deg=(70, 80))
     with PingFile(path) as f:
-        img = Imager(grid, ImagingOptions(interp="linear")).image(f.ping(0))
-    scores, _ = score_targets(img.peaks, [ty], [tz], [names[k]], 0)
-    assert scores[0].detected and scores[0].cf > 0.25
-    assert scores[0].offset_m <= HIT_DISTANCE_M
+        img = Imager(grid, ImagingOptions(interp="cubic")).image(f.ping(0))
+    r_t, a_t = np.hypot(ty, tz), np.rad2deg(np.arctan2(ty, tz))
+    on_arc = [p for p in img.peaks if abs(p["range_m"] - r_t) <= 0.5 and abs(p["angle_deg"] - a_t) <= 1.0]
+    assert on_arc, "no coherence peak on the pipe's main lobe"
+    best = max(on_arc, key=lambda p: p["cf"])
+    assert best["cf"] > 0.25
+    assert abs(best["y_m"] - ty) <= r_t * np.cos(np.deg2rad(a_t)) * np.deg2rad(1.0)
 
 
 def test_seabed_subbottom_and_multiple_at_their_depths(tmp_path):
