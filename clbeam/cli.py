@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .errors import ClbeamError
+from .errors import ClbeamError, OptionError, require
 
 log = logging.getLogger("clbeam")
 
@@ -84,6 +84,18 @@ def grid_from_args(args, max_range_default: float):
                              min_range_m=args.min_range, angles_deg=tuple(args.angles))
 
 
+def check_output_path(output, *inputs) -> None:
+    """Refuse an output that is one of the inputs or an existing folder
+    (other than a Zarr store), before anything is written or removed."""
+    out = Path(output)
+    for inp in inputs:
+        require(not (out.exists() and Path(inp).exists() and out.resolve() == Path(inp).resolve()), OptionError,
+                f"output {out} is the input file; choose another name")
+    require(not (out.is_dir() and out.suffix != ".zarr"), OptionError,
+            f"output {out} is an existing folder; give a file name")
+    require(out.parent.exists() or str(out.parent) == "", OptionError, f"output folder {out.parent} does not exist")
+
+
 def remove_partial(path: Path) -> None:
     """Delete an output file or Zarr folder left incomplete by an error."""
     import shutil
@@ -116,6 +128,14 @@ def cmd_image(args) -> int:
     from .ping import PingFile
 
     opts = options_from_args(args)
+    check_output_path(args.output, args.pings)
+    if args.peaks:
+        check_output_path(args.peaks, args.pings)
+    if args.backend == "opencl":
+        from .engine import interp_mode
+
+        require(interp_mode(opts.interp).kernel_id >= 0, OptionError,
+                f"interpolation mode '{opts.interp}' exists in the reference backend only; add --backend reference")
     with PingFile(args.pings) as pings:
         grid = grid_from_args(args, pings.max_record_range_m())
         imager = Imager(grid, opts, backend=args.backend, device=args.device)
@@ -128,15 +148,18 @@ def cmd_image(args) -> int:
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         peaks = []
         t0 = time.perf_counter()
+        created = False
         try:
             with ImageWriter(args.output, grid, len(pings), variables, attrs) as writer:
+                created = True
                 for ping in progress(pings, total=len(pings), desc="imaging", quiet=args.quiet):
                     img = imager.image(ping)
                     writer.write(ping.index, img, latitude=ping.latitude_deg, longitude=ping.longitude_deg,
                                  heading=ping.heading_deg)
                     peaks.extend(img.peaks)
         except BaseException:
-            remove_partial(Path(args.output))  # no half-written image file left behind
+            if created:
+                remove_partial(Path(args.output))  # no half-written image file left behind
             raise
         if args.peaks:
             write_peaks_csv(peaks, args.peaks)

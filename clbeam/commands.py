@@ -119,4 +119,10 @@ def register_profile(sub, common) -> None:
     register(sub, common)
 
 
-REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward, register_profile]
+def register_avo(sub, common) -> None:
+    from .avo.cli import register_avo as register
+
+    register(sub, common)
+
+
+REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward, register_profile, register_avo]

@@ -49,6 +49,10 @@ def to_earth_frame(positions_m: np.ndarray, *, roll_deg: float = 0.0,
     return out
 
 
+#: largest grid :meth:`PolarGrid.regular` builds (the paper's grid has 8.8e6 cells)
+MAX_GRID_CELLS = 2e9
+
+
 @dataclass(frozen=True)
 class PolarGrid:
     """A polar image grid in the cross-track plane (SPEC §2).
@@ -108,6 +112,9 @@ class PolarGrid:
         require(a1 > a0, GridError, f"angle window must satisfy min < max, got [{a0:g}, {a1:g}] degrees")
         n_r = int(np.floor((max_range_m - min_range_m) / range_res_m + 1e-9)) + 1
         n_a = int(np.floor((a1 - a0) / angle_res_deg + 1e-9)) + 1
+        require(n_r * n_a <= MAX_GRID_CELLS, GridError,
+                f"a grid of {n_a} angles x {n_r} ranges ({n_a * n_r:.3g} cells) exceeds {MAX_GRID_CELLS:.0e} cells; "
+                "use coarser steps or a smaller window")
         ranges = min_range_m + range_res_m * np.arange(n_r)
         angles = a0 + angle_res_deg * np.arange(n_a)
         return cls(ranges, angles, centre_yz_m)

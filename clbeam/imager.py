@@ -23,7 +23,7 @@ from .errors import ClbeamError, GeometryError, GridError, OptionError, require
 from .geometry import PolarGrid, check_positions, to_earth_frame
 from .ping import Ping
 from .io import PEAK_COLUMNS
-from .postprocess import DEFAULT_THRESHOLD, coherence_peaks, hann_smooth
+from .postprocess import DEFAULT_THRESHOLD, coherence_peaks, hann_smooth, peak_row
 from .signal import compress_analytic, upsample_analytic
 
 log = logging.getLogger(__name__)
@@ -214,8 +214,10 @@ class Imager:
             log.warning("ping %d: no usable channel; the image is empty", ping.index)
         if range_window_m is None and self.options.seabed_band_m is not None:
             depth = self.options.seabed_depth_m
-            if depth is None:
+            if depth is None and inp.n_channels:
                 depth = pick_seabed_depth_m(inp)
+            if depth is None:  # no usable channel: nothing to pick, the image is empty anyway
+                depth = float(self.grid.ranges_m[0])
             range_window_m = seabed_window_m(self.grid, depth, self.options.seabed_band_m)
         check_grid_reaches_record(inp, self.grid)
         t0 = time.perf_counter()
@@ -226,6 +228,7 @@ class Imager:
         t0 = time.perf_counter()
         # undo the power-of-two normalisation exactly (float64 only where float32 could overflow)
         intensity = None if sums.intensity is None else rescale(sums.intensity, 2 * scale_exp)
+        sums.intensity = intensity
         if sums.s is not None:
             sums.s = sums.s.astype(np.complex128) * np.ldexp(1.0, scale_exp)
             sums.q = np.ldexp(sums.q.astype(np.float64), 2 * scale_exp)
@@ -244,24 +247,11 @@ class Imager:
 
     def peak_rows(self, ping: Ping, cf_smooth: np.ndarray, intensity: np.ndarray | None, centre_yz) -> list:
         """Rows of the peaks table for one ping (SPEC §3 step 7)."""
-        idx = coherence_peaks(cf_smooth, self.options.threshold)
         g = self.grid
-        rows = []
-        for ia, ir in idx:
-            r, a = float(g.ranges_m[ir]), float(g.angles_deg[ia])
-            inten = float(intensity[ia, ir]) if intensity is not None else np.nan
-            row = {
-                "ping": ping.index, "range_m": r, "angle_deg": a,
-                "y_m": centre_yz[0] + r * np.sin(np.deg2rad(a)), "z_m": centre_yz[1] + r * np.cos(np.deg2rad(a)),
-                "cf": float(cf_smooth[ia, ir]),
-                "intensity_db": 10 * np.log10(inten) if inten > 0 else -np.inf,
-            }
-            if ping.has_navigation:
-                row["latitude_deg"], row["longitude_deg"] = ping.latitude_deg, ping.longitude_deg
-                if ping.heading_deg is not None:
-                    row["heading_deg"] = ping.heading_deg
-            rows.append(row)
-        return rows
+        nav = {"latitude": ping.latitude_deg, "longitude": ping.longitude_deg, "heading": ping.heading_deg}
+        return [peak_row(ping.index, g.ranges_m[ir], g.angles_deg[ia], centre_yz, cf_smooth[ia, ir],
+                         float(intensity[ia, ir]) if intensity is not None else np.nan, nav)
+                for ia, ir in coherence_peaks(cf_smooth, self.options.threshold)]
 
 
 def check_grid_fits_memory(grid: PolarGrid, options: ImagingOptions, *, fraction: float = 0.5) -> None:
@@ -303,7 +293,8 @@ def pick_seabed_depth_m(inp: BeamformInput, *, below_peak_db: float = 20.0) -> f
     require(env.size > 0 and np.max(env) > 0, OptionError,
             "cannot pick the seabed: the ping has no signal; give the seabed depth")
     k = int(np.argmax(env >= np.max(env) * 10 ** (-below_peak_db / 20)))
-    return 0.5 * inp.sound_speed_m_s * (inp.t0_s + k / inp.sample_rate_hz)
+    # measured from the (heaved) source, returned below the grid centre
+    return 0.5 * inp.sound_speed_m_s * (inp.t0_s + k / inp.sample_rate_hz) + float(inp.source_offset_m[2])
 
 
 def seabed_window_m(grid: PolarGrid, depth_m: float, band_m: tuple) -> np.ndarray:
@@ -322,7 +313,7 @@ def rescale(values: np.ndarray, exponent: int) -> np.ndarray:
     stays far inside float32's range, in float64 otherwise."""
     if exponent == 0:
         return values
-    if values.dtype == np.float32 and abs(exponent) < 100:
+    if values.dtype == np.float32 and -20 <= exponent < 100:  # no denormals, no overflow
         values *= np.float32(2.0**exponent)
         return values
     return np.ldexp(values.astype(np.float64), exponent)

@@ -165,7 +165,8 @@ def write_peaks_csv(rows: list, path: str | os.PathLike) -> Path:
         w = csv.DictWriter(fh, fieldnames=cols, extrasaction="ignore")
         w.writeheader()
         for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+            # 10 significant digits: latitudes to the centimetre, eastings to the millimetre
+            w.writerow({k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in r.items()})
     return p
 
 

@@ -87,6 +87,22 @@ def coherence_peaks(cf_smooth: np.ndarray, threshold: float = DEFAULT_THRESHOLD)
     return peaks[np.argsort(-img[peaks[:, 0], peaks[:, 1]], kind="stable")]
 
 
+def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float, intensity: float,
+             navigation: dict | None = None) -> dict:
+    """One row of the peaks table (SPEC §3 step 7): position on the grid and in
+    the earth frame (m), smoothed CF, intensity (dB), and the ship's navigation
+    at the ping (``ship_latitude_deg``, ``ship_longitude_deg``, ``ship_heading_deg``:
+    the peak's own geographic position is the survey's job)."""
+    th = np.deg2rad(angle_deg)
+    row = {"ping": int(ping), "range_m": float(range_m), "angle_deg": float(angle_deg),
+           "y_m": float(centre_yz_m[0] + range_m * np.sin(th)), "z_m": float(centre_yz_m[1] + range_m * np.cos(th)),
+           "cf": float(cf), "intensity_db": float(10 * np.log10(intensity)) if intensity > 0 else float("-inf")}
+    for key, value in (navigation or {}).items():
+        if value is not None and np.isfinite(value):
+            row[f"ship_{key}_deg"] = float(value)
+    return row
+
+
 def peaks_from_images(ds, threshold: float = DEFAULT_THRESHOLD) -> list:
     """Coherence-peak rows for every ping of an image dataset."""
     ranges, angles = ds["range"].values, ds["angle"].values
@@ -94,17 +110,9 @@ def peaks_from_images(ds, threshold: float = DEFAULT_THRESHOLD) -> list:
     for i in range(ds.sizes["ping"]):
         cf_s = hann_smooth(ds["cf"].isel(ping=i).values)
         inten = ds["intensity"].isel(ping=i).values if "intensity" in ds.variables else None
-        yc = float(ds["centre_y"].values[i]) if "centre_y" in ds.variables else 0.0
-        zc = float(ds["centre_z"].values[i]) if "centre_z" in ds.variables else 0.0
-        ping = int(ds["ping"].values[i])
+        centre = tuple(float(ds[v].values[i]) if v in ds.variables else 0.0 for v in ("centre_y", "centre_z"))
+        nav = {k: float(ds[k].values[i]) for k in ("latitude", "longitude", "heading") if k in ds.variables}
         for ia, ir in coherence_peaks(cf_s, threshold):
-            r, a = float(ranges[ir]), float(angles[ia])
-            val = float(inten[ia, ir]) if inten is not None else np.nan
-            row = {"ping": ping, "range_m": r, "angle_deg": a,
-                   "y_m": yc + r * np.sin(np.deg2rad(a)), "z_m": zc + r * np.cos(np.deg2rad(a)),
-                   "cf": float(cf_s[ia, ir]), "intensity_db": 10 * np.log10(val) if val > 0 else -np.inf}
-            for nav in ("latitude", "longitude", "heading"):
-                if nav in ds.variables and np.isfinite(ds[nav].values[i]):
-                    row[f"{nav}_deg"] = float(ds[nav].values[i])
-            rows.append(row)
+            rows.append(peak_row(int(ds["ping"].values[i]), ranges[ir], angles[ia], centre, cf_s[ia, ir],
+                                 float(inten[ia, ir]) if inten is not None else np.nan, nav))
     return rows

@@ -48,7 +48,9 @@ def compress_analytic(samples: np.ndarray, replica: np.ndarray) -> np.ndarray:
 
     Non-finite input samples are replaced by zero and every output sample
     whose correlation window touched one is set to NaN, so the imager skips
-    exactly the samples they corrupted.
+    the samples they corrupted; outside that mask the result is that of the
+    zeroed record (the Hilbert transform's tail spreads a small, decaying
+    difference beyond it).
 
     Parameters
     ----------

@@ -40,7 +40,7 @@ typedef REAL_T real_t;
 /* u.o: the plane-wave part of an offset's delay */
 #define pp_(sn, cs, oy, oz) ((sn) * (oy) + (cs) * (oz))
 
-inline vreal offset_delay_m(real_t R, vreal sn, vreal cs, real_t oy, real_t oz, real_t ox2, real_t q)
+static inline vreal offset_delay_m(real_t R, vreal sn, vreal cs, real_t oy, real_t oz, real_t ox2, real_t q)
 {
     /* |R u - o| from its components (accurate even where a cell sits on an
      * element, unlike R^2 - 2 R u.o + |o|^2); numerator without cancellation */

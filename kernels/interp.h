@@ -54,7 +54,7 @@
 #endif
 
 /* The NTAPS complex taps starting at data[first] (real part), per lane. */
-inline void load_taps(__global const real_t *restrict data, vint first, vreal *re, vreal *im)
+static inline void load_taps(__global const real_t *restrict data, vint first, vreal *re, vreal *im)
 {
 #if VEC == 1
     real_t tmp[TAP_REALS];
@@ -87,7 +87,7 @@ inline void load_taps(__global const real_t *restrict data, vint first, vreal *r
 }
 
 /* Split sample positions into the integer tap k and the fraction t. */
-inline vint split_position(vreal pos, vreal *t)
+static inline vint split_position(vreal pos, vreal *t)
 {
 #if INTERP == 0
     const vreal f = floor(pos + (real_t)0.5);
@@ -102,7 +102,7 @@ inline vint split_position(vreal pos, vreal *t)
 /* Interpolate at fraction t; first indexes the real part of tap
  * k - TAPS_BEFORE per lane, clamped by the caller so every tap is in the
  * buffer.  Indices are 32-bit: the host checks the buffer fits. */
-inline void interpolate(__global const real_t *restrict data, vint first, vreal t, vreal *out_re, vreal *out_im)
+static inline void interpolate(__global const real_t *restrict data, vint first, vreal t, vreal *out_re, vreal *out_im)
 {
     vreal re[NTAPS], im[NTAPS];
     load_taps(data, first, re, im);

@@ -39,7 +39,7 @@ def test_image_writes_the_spec_variables_and_finds_each_scatterer(ping_file, tmp
         assert float(best["angle"].values[0]) == pytest.approx(a, abs=0.1 + 1e-6)
         assert float(ds["cf"].isel(ping=i).sel(range=r, angle=a, method="nearest")) > 0.99
     rows = read_peaks_csv(peaks)
-    assert {"ping", "range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db", "latitude_deg"} <= set(rows[0])
+    assert {"ping", "range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db", "ship_latitude_deg"} <= set(rows[0])
     ds.close()
 
 
@@ -74,7 +74,10 @@ def test_reference_backend_gives_the_same_image(ping_file, tmp_path):
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--device", "no-such-gpu"], "no OpenCL device matches"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--sound-speed", "900"], "within 1300-1700"),
     (["peaks", "{pings}", "-o", "{tmp}/p.csv"], "not a clbeam image file"),
-    (["peaks", "{pings}", "-o", "{tmp}/p.csv", "--threshold", "2"], "not a clbeam image file"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--threshold", "2"], "threshold must be within 0-1"),
+    (["image", "{pings}", "-o", "{pings}"], "is the input file"),
+    (["image", "{pings}", "-o", "{tmp}"], "is an existing folder"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--range-res", "1e-7"], "exceeds 2e+09 cells"),
 ])
 def test_bad_input_exits_2_with_one_line(ping_file, tmp_path, capsys, argv, message):
     argv = [a.format(pings=ping_file, tmp=tmp_path) for a in argv]

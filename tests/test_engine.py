@@ -95,7 +95,7 @@ def test_widest_precision_kernel_matches_reference(cl_engine, ref_engine):
 def test_tiling_over_angles_gives_identical_results(cl_engine):
     inp = random_input(seed=7)
     whole = cl_engine.beamform(inp, GRID, interp="linear", outputs=("intensity", "cf"))
-    tiled_engine = OpenCLEngine(max_tile_cells=GRID.shape[1] * 7)  # 7 angle rows per launch
+    tiled_engine = OpenCLEngine(max_tile_cells=GRID.shape[1] * 16)  # 16 angle rows (one CPU tile) per launch
     tiled = tiled_engine.beamform(inp, GRID, interp="linear", outputs=("intensity", "cf"))
     np.testing.assert_array_equal(tiled.intensity, whole.intensity)
     np.testing.assert_array_equal(tiled.cf, whole.cf)
@@ -170,3 +170,39 @@ def test_cf_finite_and_within_unit_interval_on_degenerate_data(cl_engine, ref_en
         assert (ref.m <= clean_ref.m).all() and (ref.m < clean_ref.m).any()
         same = ref.m == clean_ref.m
         np.testing.assert_allclose(ref.s[same], clean_ref.s[same], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("mode", ["nearest", "linear-bb", "cubic", "lanczos4"])
+def test_far_cells_on_the_fresnel_branch_match_reference(cl_engine, ref_engine, mode):
+    """Cells beyond the Fresnel switch range use the kernel's expansion: all
+    outputs against the reference there (truncation below 1e-5 sample adds
+    2 pi 9 kHz / fs * 1e-5 = 1.4e-5 to the float32 bound)."""
+    from clbeam.engine.opencl import fresnel_min_range_m
+
+    inp = random_input(seed=31, n_s=12000, t0=0.2)
+    r0 = fresnel_min_range_m(inp.element_offsets_m, inp.samples_per_m)
+    grid = PolarGrid.regular(range_res_m=0.37, angle_res_deg=3.1, min_range_m=max(1.5 * r0, 160),
+                             max_range_m=max(1.5 * r0, 160) + 40, angles_deg=(-75, 75))
+    outs = ("intensity", "cf", "sums")
+    got = cl_engine.beamform(inp, grid, interp=mode, outputs=outs)
+    ref = ref_engine.beamform(inp, grid, interp=mode, outputs=outs)
+    tol = float32_tolerance(inp) + 5 * 2 * 2 * np.pi * 9000 / FS * 1e-5
+    assert ref.m.max() == inp.n_channels
+    if mode == "nearest":
+        keep = np.isclose(got.s, ref.s, rtol=tol, atol=tol * np.abs(ref.s).max())
+        assert keep.mean() > 0.999
+    else:
+        keep = np.ones(ref.m.shape, dtype=bool)
+        assert np.array_equal(got.m, ref.m)
+    for a, b in ((got.intensity, ref.intensity), (got.s, ref.s), (got.q, ref.q)):
+        assert np.linalg.norm((a - b)[keep]) / np.linalg.norm(b[keep]) < tol
+
+
+def test_record_shorter_than_the_taps_is_a_clear_error(cl_engine, ref_engine):
+    from clbeam.errors import GridError
+
+    inp = random_input(seed=1, n_ch=2, n_s=10)
+    grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=10, max_range_m=5, angles_deg=(-30, 30))
+    for eng in (cl_engine, ref_engine):
+        with pytest.raises(GridError, match="10 samples, fewer than the 16 taps of interpolation mode 'lanczos8'"):
+            eng.beamform(inp, grid, interp="lanczos8")

@@ -156,11 +156,20 @@ class Sums:
 
 def check_outputs(outputs) -> frozenset[str]:
     """Validate a collection of requested outputs."""
+    if isinstance(outputs, str):
+        outputs = [o.strip() for o in outputs.split(",") if o.strip()]
     out = frozenset(outputs)
     require(len(out) > 0, OptionError, "no outputs requested, expected some of " + ", ".join(OUTPUTS))
     bad = sorted(out - set(OUTPUTS))
     require(not bad, OptionError, f"output '{bad[0] if bad else ''}' is unknown, expected some of {', '.join(OUTPUTS)}")
     return out
+
+
+def check_record_length(inp: BeamformInput, mode: InterpMode) -> None:
+    """Raise :class:`GridError` when the record is shorter than the mode's support."""
+    taps = mode.taps_before + mode.taps_after + 1
+    require(inp.n_samples >= taps, GridError,
+            f"the record has {inp.n_samples} samples, fewer than the {taps} taps of interpolation mode '{mode.name}'")
 
 
 def range_bases(inp: BeamformInput, grid: PolarGrid) -> np.ndarray:

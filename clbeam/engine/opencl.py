@@ -18,7 +18,8 @@ import numpy as np
 
 from ..errors import DeviceError, GridError, OptionError, require
 from ..geometry import PolarGrid
-from .common import BeamformInput, InterpMode, Sums, baseband, carrier_phase, cell_windows, check_outputs, interp_mode
+from .common import (BeamformInput, InterpMode, Sums, baseband, carrier_phase, cell_windows, check_outputs,
+                     check_record_length, interp_mode)
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +95,12 @@ def kernel_source() -> str:
 
 def device_has_fp64(dev) -> bool:
     """True when the device supports double precision (``cl_khr_fp64``)."""
-    return "cl_khr_fp64" in dev.extensions or dev.double_fp_config != 0
+    if "cl_khr_fp64" in dev.extensions:
+        return True
+    try:  # OpenCL 1.2+ devices report double support here even without the extension string
+        return dev.double_fp_config != 0
+    except Exception:  # some drivers raise for a query on a device without doubles
+        return False
 
 
 class OpenCLEngine:
@@ -228,6 +234,7 @@ class OpenCLEngine:
                  outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None) -> Sums:
         """Image one ping on the device (see :meth:`ReferenceEngine.beamform`)."""
         mode = interp_mode(interp)
+        check_record_length(inp, mode)
         require(mode.kernel_id >= 0, OptionError,
                 f"interpolation mode '{mode.name}' exists in the reference backend only")
         outs = check_outputs(outputs)

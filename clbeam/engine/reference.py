@@ -11,6 +11,7 @@ import numpy as np
 
 from ..geometry import PolarGrid
 from .common import (
+    check_record_length,
     EXACT_HALF_WIDTH,
     BeamformInput,
     InterpMode,
@@ -105,6 +106,7 @@ class ReferenceEngine:
             ``(n_angle, 2)`` range interval (m) to compute per angle; others are 0.
         """
         mode = interp_mode(interp)
+        check_record_length(inp, mode)
         outs = check_outputs(outputs)
         data = np.asarray(inp.data, dtype=np.complex128)
         if mode.baseband:
