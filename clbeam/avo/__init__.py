@@ -11,6 +11,9 @@ figures (:mod:`.plot`, imported on demand because it loads matplotlib).
 from .attributes import (AngularAttributes, angular_attributes, background_trend, fluid_factor,
                          gradient_intercept, product, range_mask)
 from .inversion import InversionResult, invert_attributes, invert_response
+from .response import (AngularResponse, ResponseOptions, SeabedLine, along_track_positions_m,
+                       angular_responses, francois_garrison_db_per_km, incidence_angle_deg,
+                       insonified_area_m2, pick_seabed, ping_response, strength_from_intensity_db)
 from .model import (backscatter_cross_section, backscatter_strength_db, critical_angle_deg,
                     kirchhoff_cross_section, kirchhoff_integral, lambert_strength_db,
                     perturbation_cross_section, reflection_coefficient, reflection_loss_db,
@@ -30,4 +33,7 @@ __all__ = [
     "SedimentParams", "sediment_from_grain_size", "sediment_named", "sediment_names",
     "Patch", "stack_linear_db", "stack_pings", "stack_sides",
     "COLUMNS", "PatchRecord", "survey_records", "write_csv",
+    "AngularResponse", "ResponseOptions", "SeabedLine", "along_track_positions_m", "angular_responses",
+    "francois_garrison_db_per_km", "incidence_angle_deg", "insonified_area_m2", "pick_seabed",
+    "ping_response", "strength_from_intensity_db",
 ]
