@@ -125,4 +125,11 @@ def register_avo(sub, common) -> None:
     register(sub, common)
 
 
-REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward, register_profile, register_avo]
+def register_survey(sub, common) -> None:
+    from .survey import register_survey as register
+
+    register(sub, common)
+
+
+REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward, register_profile, register_avo,
+                    register_survey]
