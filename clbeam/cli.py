@@ -62,6 +62,11 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
                    help="compute only cells from ABOVE m above to BELOW m below the seabed (e.g. 5 40)")
     g.add_argument("--seabed-depth", type=float, default=None, metavar="M",
                    help="seabed depth below the transducers for --seabed-band (default: picked per ping)")
+    g.add_argument("--apodization", default="rect", metavar="WINDOW",
+                   help="receive window across the array: rect, hann, tukey[:alpha], chebyshev[:dB] "
+                        "(default rect; CF becomes the weighted CF)")
+    g.add_argument("--no-calibration", action="store_true",
+                   help="ignore the file's element_gain_db / element_phase_deg (default: remove them)")
 
 
 def options_from_args(args):
@@ -72,7 +77,8 @@ def options_from_args(args):
     return ImagingOptions(interp=args.interp, upsample=args.upsample, outputs=outputs, threshold=args.threshold,
                           sound_speed_m_s=args.sound_speed, precision=args.precision,
                           seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
-                          seabed_depth_m=args.seabed_depth)
+                          seabed_depth_m=args.seabed_depth, apodization=args.apodization,
+                          calibrate=not args.no_calibration)
 
 
 def grid_from_args(args, max_range_default: float):
@@ -143,8 +149,9 @@ def cmd_image(args) -> int:
         if "cf" in variables:
             variables.append("cf_smooth")
         if "sums" in variables:
-            variables += ["s_r", "s_i", "q", "m"]
+            variables += ["s_r", "s_i", "q", "m"] + (["w"] if opts.apodization != "rect" else [])
         attrs = {"interp": opts.interp, "upsample": opts.upsample, "backend": args.backend,
+                 "apodization": opts.apodization, "calibrated": int(opts.calibrate),
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         peaks = []
         t0 = time.perf_counter()

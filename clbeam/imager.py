@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .apodization import calibration_factors, parse_window, receive_weights
 from .engine import BeamformInput, Sums, get_engine, interp_mode
 from .engine.common import cell_windows, check_outputs
 from .errors import ClbeamError, GeometryError, GridError, OptionError, require
@@ -55,6 +56,13 @@ class ImagingOptions:
     seabed_depth_m : float or None
         Seabed depth below the grid centre (m) for the band; ``None`` picks it
         per ping from the first strong return at nadir.
+    apodization : str
+        Receive window across the array: ``"rect"`` (none), ``"hann"``,
+        ``"tukey[:alpha]"``, ``"chebyshev[:sidelobe_db]"``
+        (:mod:`clbeam.apodization`; CF becomes the weighted CF).
+    calibrate : bool
+        Remove the ping file's ``element_gain_db`` / ``element_phase_deg``
+        from the channels (when the file has them).
     """
 
     interp: str = "cubic"
@@ -65,9 +73,12 @@ class ImagingOptions:
     precision: str = "float32"
     seabed_band_m: tuple | None = None
     seabed_depth_m: float | None = None
+    apodization: str = "rect"
+    calibrate: bool = True
 
     def __post_init__(self):
         interp_mode(self.interp)
+        object.__setattr__(self, "apodization", parse_window(self.apodization).label)
         object.__setattr__(self, "outputs", tuple(sorted(check_outputs(self.outputs))))
         require(int(self.upsample) == self.upsample and 1 <= self.upsample <= 16, OptionError,
                 f"upsample must be an integer 1-16, got {self.upsample!r}")
@@ -169,6 +180,9 @@ class Imager:
             data = compress_analytic(x[used], ping.pulse.replica(ping.sample_rate_hz))
         else:
             data = np.where(finite[used], x[used], np.nan).astype(np.complex128)
+        factors = calibration_factors(ping.element_gain_db, ping.element_phase_deg, ping.n_channels)
+        if self.options.calibrate and factors is not None:
+            data *= factors[used, None]
         return data, used
 
     def beamform_input(self, ping: Ping) -> BeamformInput:
@@ -185,11 +199,13 @@ class Imager:
             data = upsample_analytic(data, self.options.upsample)
             fs *= self.options.upsample
         fc = ping.pulse.centre_frequency_hz if ping.pulse is not None else None
+        window = parse_window(self.options.apodization)
+        weights = None if window.uniform else receive_weights(window, ping.element_pos_m[:, 1])[used]
         return BeamformInput(
             data=data, sample_rate_hz=fs, t0_s=ping.t0_s,
             sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
             element_offsets_m=elements - centre, source_offset_m=source - centre,
-            centre_frequency_hz=fc or 0.0)
+            centre_frequency_hz=fc or 0.0, weights=weights)
 
     # -- imaging ----------------------------------------------------------
     def image(self, ping: Ping, *, range_window_m: np.ndarray | None = None) -> PingImage:

@@ -2,7 +2,7 @@
 
 Image files hold ``intensity(ping, angle, range)`` and ``cf(ping, angle,
 range)`` (plus ``cf_smooth`` and, on request, the raw sums ``s_r``, ``s_i``,
-``q``, ``m``) with coordinates ``range`` (m) and ``angle`` (degree).  They
+``q``, ``m``, and ``w`` with apodization) with coordinates ``range`` (m) and ``angle`` (degree).  They
 are written one ping at a time, so memory stays bounded whatever the count.
 """
 
@@ -30,6 +30,7 @@ VARIABLES = {
     "s_i": ("coherent sum S, imaginary part", "input units"),
     "q": ("incoherent sum Q = sum |p|^2", "squared input units"),
     "m": ("number of contributing channels M", "1"),
+    "w": ("sum W of the contributing channels' apodization weights", "1"),
 }
 
 
@@ -46,6 +47,8 @@ def image_arrays(img) -> dict:
         out["s_i"] = img.sums.s.imag.astype(np.float32)
         out["q"] = img.sums.q.astype(np.float32)
         out["m"] = img.sums.m.astype(np.int16)
+        if img.sums.w is not None:
+            out["w"] = img.sums.w.astype(np.float32)
     return out
 
 

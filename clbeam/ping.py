@@ -26,6 +26,8 @@ SOUND_SPEED_RANGE_M_S = (1300.0, 1700.0)
 MAX_ABS_ROLL_DEG = 45.0
 #: largest distance (m) of an element or the source from the array reference point
 MAX_OFFSET_M = 100.0
+#: largest channel gain correction (dB) a ping file may give
+MAX_ABS_GAIN_DB = 60.0
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,10 @@ class Ping:
         ``(channel,)`` bool, False for dead channels.
     roll_deg, heave_m : float
         Motion: roll (degrees, starboard down positive), heave (m, up positive).
+    element_gain_db, element_phase_deg : numpy.ndarray or None
+        ``(channel,)`` channel responses (dB, degree): the recorded analytic
+        signal is ``10^(g/20) e^(j φ)`` times the true one (removed by
+        calibration, :mod:`clbeam.apodization`).
     """
 
     samples: np.ndarray
@@ -104,6 +110,8 @@ class Ping:
     time: np.datetime64 | None = None
     pulse: Pulse | None = None
     index: int = 0
+    element_gain_db: np.ndarray | None = None
+    element_phase_deg: np.ndarray | None = None
     extras: dict = field(default_factory=dict)
 
     @property
@@ -291,6 +299,9 @@ class PingFile:
         self._need(self.kind == "analytic" or self.pulse is not None,
                    "missing pulse description: 'pulse_f0', 'pulse_f1', 'pulse_duration' or 'tx_waveform' (needed for kind='raw')")
 
+        self.element_gain_db = self._channel_response("element_gain_db", MAX_ABS_GAIN_DB)
+        self.element_phase_deg = self._channel_response("element_phase_deg", None)
+
         self._valid = np.ones(self.n_channels, dtype=bool)
         self._valid_per_ping = None
         if "channel_valid" in ds.variables:
@@ -301,6 +312,16 @@ class PingFile:
                 self._valid = np.asarray(v.values).astype(bool)
             else:
                 self._valid_per_ping = v
+
+    def _channel_response(self, name: str, limit: float | None) -> np.ndarray | None:
+        v = self._var(name, (("channel",),), required=False)
+        if v is None:
+            return None
+        a = self._numeric(name, v)
+        if limit is not None:
+            self._need(bool(np.all(np.abs(a) <= limit)),
+                       f"variable '{name}' reaches {np.abs(a).max():g}, expected within ±{limit:g}")
+        return a
 
     def _optional_per_ping(self, name: str, default):
         v = self._var(name, (("ping",), ()), required=False)
@@ -373,6 +394,8 @@ class PingFile:
             time=None if self._time is None else self._time[i],
             pulse=self.pulse,
             index=i,
+            element_gain_db=self.element_gain_db,
+            element_phase_deg=self.element_phase_deg,
         )
 
 

@@ -127,3 +127,16 @@ def upsample_analytic(signal: np.ndarray, factor: int) -> np.ndarray:
             k = np.clip(idx[-1] * factor + offset, 0, n * factor - 1)
             out[idx[:-1] + (k,)] = np.nan
     return out
+
+
+def apply_channel_response(samples: np.ndarray, gain_db: np.ndarray, phase_deg: np.ndarray) -> np.ndarray:
+    """Real channels ``(channel, sample)`` as recorded through a channel
+    response of gain ``gain_db`` (dB) and phase ``phase_deg`` (degree) per
+    channel: ``10^(g/20) Re{a(t) e^(j φ)}`` with ``a`` the analytic signal,
+    so the analytic signal of the result is ``10^(g/20) e^(j φ) a`` (what
+    :func:`clbeam.apodization.calibration_factors` removes)."""
+    x = np.asarray(samples, dtype=np.float64)
+    n = x.shape[-1]
+    a = np.fft.ifft(np.fft.fft(x, axis=-1) * analytic_weights(n), axis=-1)
+    g = 10.0 ** (np.asarray(gain_db, dtype=np.float64) / 20.0) * np.exp(1j * np.deg2rad(phase_deg))
+    return (g[:, None] * a).real

@@ -320,7 +320,7 @@ class SurveyOptions:
             return []
         out = set(self.imaging.outputs) | {"cf_smooth"}
         if "sums" in out:
-            out |= {"s_r", "s_i", "q", "m"}
+            out |= {"s_r", "s_i", "q", "m"} | ({"w"} if self.imaging.apodization != "rect" else set())
         return [v for v in VARIABLES if v in out]
 
 

@@ -16,6 +16,9 @@
  *                       restores the carrier phase after interpolation
  *   N_SAMPLES, N_RANGE  record length and range cells
  *   WANT_INTENSITY, WANT_CF, WANT_SUMS   which outputs are written
+ *   APODIZE             1: receive weights w_n (clbeam/apodization.py):
+ *                       S = sum w p, Q = sum w |p|^2, W = sum w,
+ *                       CF = |S|^2 / (W Q) in [0, 1] (Cauchy-Schwarz)
  *
  * Travel time in samples of cell r for channel n, with every position an
  * offset o from the grid centre and u the unit vector of the cell's angle:
@@ -54,6 +57,7 @@ __kernel void beamform(
     __global const real_t *restrict data,      /* [n_chan][N_SAMPLES][2] */
     __global const real_t *restrict chan,      /* [n_chan][4]: o_y, o_z, |o|^2, o_x^2 (m, m, m^2, m^2) */
     const int n_chan,
+    __global const real_t *restrict weights,   /* [n_chan] receive apodization, APODIZE */
     __global const int *restrict tiles,        /* [n_tiles][2]: first angle, range row */
     __global const real_t *restrict angle_sin, /* [n_angle_padded] */
     __global const real_t *restrict angle_cos, /* [n_angle_padded] */
@@ -72,6 +76,7 @@ __kernel void beamform(
     __global real_t *restrict out_s,           /* [2][n_angle_padded][N_RANGE]: re plane, im plane */
     __global real_t *restrict out_q,
     __global int *restrict out_m,
+    __global real_t *restrict out_w,           /* [n_angle_padded][N_RANGE] W, APODIZE with WANT_SUMS */
     const int n_angle_padded)
 {
     const int tile = get_group_id(0);
@@ -90,6 +95,9 @@ __kernel void beamform(
     const real_t phase0 = base_phase[ir];
 #endif
     vreal sr = (vreal)0, si = (vreal)0, q = (vreal)0, m = (vreal)0;
+#if APODIZE
+    vreal wsum = (vreal)0;
+#endif
     for (int n = 0; n < n_chan; ++n) {
         const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2], ox2 = chan[4 * n + 3];
         /* far cells (a uniform branch: R is one per work-item) use the
@@ -119,23 +127,40 @@ __kernel void beamform(
         const vmask ok = active & inside & RMASK(isfinite(re)) & RMASK(isfinite(im));
         re = select((vreal)0, re, ok);
         im = select((vreal)0, im, ok);
+#if APODIZE
+        const real_t w = weights[n];
+        sr += w * re;
+        si += w * im;
+        q += w * (re * re + im * im);
+        wsum += select((vreal)0, (vreal)w, ok);
+#else
         sr += re;
         si += im;
         q += re * re + im * im;
+#endif
         m += select((vreal)0, (vreal)1, ok);
     }
     const vreal inten = sr * sr + si * si;
+#if APODIZE
+    const vreal denom_w = wsum;
+#else
+    const vreal denom_w = m;
+#endif
     const size_t cell = (size_t)ia * N_RANGE + ir;
 #if WANT_INTENSITY
     SCATTER(real_t, out_intensity, cell, N_RANGE, inten);
 #endif
 #if WANT_CF
-    SCATTER(real_t, out_cf, cell, N_RANGE, select((vreal)0, inten / (m * q), RMASK(m > (real_t)0) & RMASK(q > (real_t)0)));
+    SCATTER(real_t, out_cf, cell, N_RANGE, select((vreal)0, inten / (denom_w * q),
+                                                  RMASK(denom_w > (real_t)0) & RMASK(q > (real_t)0)));
 #endif
 #if WANT_SUMS
     SCATTER(real_t, out_s, cell, N_RANGE, sr);
     SCATTER(real_t, out_s, cell + (size_t)n_angle_padded * N_RANGE, N_RANGE, si);
     SCATTER(real_t, out_q, cell, N_RANGE, q);
     SCATTER(int, out_m, cell, N_RANGE, CONVERT_VINT(m));
+#if APODIZE
+    SCATTER(real_t, out_w, cell, N_RANGE, wsum);
+#endif
 #endif
 }

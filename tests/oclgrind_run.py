@@ -22,6 +22,8 @@ data[2, 40:45] = np.nan
 eo = np.zeros((6, 3))
 eo[:, 1] = np.linspace(-1.5, 1.5, 6)
 inp = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0)
+weighted = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0,
+                         weights=np.array([0.1, 0.5, 1.0, 1.0, 0.5, 0.0]))
 # ranges from the source (delays before sample 0) to beyond the record's end
 grid = PolarGrid.regular(range_res_m=0.4, angle_res_deg=20, max_range_m=4.0, angles_deg=(-80, 80))
 ref = get_engine("reference")
@@ -44,3 +46,14 @@ for precision, layout in runs:
         rel = np.linalg.norm(got.intensity - want.intensity) / np.linalg.norm(want.intensity)
         m_equal = np.array_equal(got.m, want.m)
         print(f"variant {precision} {layout} {mode} rel={rel:.2e} m_equal={m_equal} m_range={want.m.min()}-{want.m.max()}")
+    # receive apodization (weights buffer, W output) in every mode of this layout
+    for mode, spec in INTERP_MODES.items():
+        if spec.kernel_id < 0:
+            continue
+        got = eng.beamform(weighted, grid, interp=mode, outputs=("intensity", "cf", "sums"))
+        want = ref.beamform(weighted, grid, interp=mode, outputs=("intensity", "cf", "sums"))
+        rel = max(np.linalg.norm(got.intensity - want.intensity) / np.linalg.norm(want.intensity),
+                  np.max(np.abs(got.w - want.w)) / weighted.weights.sum(), np.max(np.abs(got.cf - want.cf)))
+        m_equal = np.array_equal(got.m, want.m)
+        print(f"variant apodized {precision} {layout} {mode} rel={rel:.2e} m_equal={m_equal} "
+              f"m_range={want.m.min()}-{want.m.max()}")

@@ -88,6 +88,9 @@ class BeamformInput:
     centre_frequency_hz : float
         Band centre (Hz): the carrier removed by the basebanded modes
         (0 = unknown, which those modes refuse).
+    weights : numpy.ndarray or None
+        ``(n_channel,)`` receive apodization ``w_n >= 0``
+        (:mod:`clbeam.apodization`); ``None``: all 1, the unweighted sums.
     """
 
     data: np.ndarray
@@ -97,6 +100,7 @@ class BeamformInput:
     element_offsets_m: np.ndarray
     source_offset_m: np.ndarray
     centre_frequency_hz: float = 0.0
+    weights: np.ndarray | None = None
 
     def __post_init__(self):
         d = self.data
@@ -111,6 +115,12 @@ class BeamformInput:
         require(self.sound_speed_m_s > 0 and np.isfinite(self.sound_speed_m_s), OptionError,
                 f"sound speed must be > 0 m/s, got {self.sound_speed_m_s!r}")
         require(np.isfinite(self.t0_s), OptionError, f"t0 must be finite, got {self.t0_s!r}")
+        if self.weights is not None:
+            w = np.asarray(self.weights, dtype=np.float64)
+            require(w.shape == (d.shape[0],), OptionError,
+                    f"apodization weights must be ({d.shape[0]},) for {d.shape[0]} channels, got {w.shape}")
+            require(bool(np.all(np.isfinite(w) & (w >= 0))), OptionError,
+                    "apodization weights must be finite and >= 0")
 
     @property
     def n_channels(self) -> int:
@@ -138,13 +148,17 @@ class Sums:
     intensity : numpy.ndarray
         ``|S|^2`` (squared input units), Holland eq. 1.
     cf : numpy.ndarray
-        Coherence factor ``|S|^2 / (M Q)``, 0 where ``M = 0`` or ``Q = 0``.
+        Coherence factor ``|S|^2 / (M Q)``, 0 where ``M = 0`` or ``Q = 0``;
+        with apodization ``|S|^2 / (W Q)`` (:mod:`clbeam.apodization`).
     s : numpy.ndarray
-        complex coherent sum ``S``.
+        complex coherent sum ``S = Σ w p``.
     q : numpy.ndarray
-        incoherent sum ``Q = Σ |p|^2``.
+        incoherent sum ``Q = Σ w |p|^2``.
     m : numpy.ndarray
         int32 count ``M`` of contributing channels.
+    w : numpy.ndarray or None
+        sum ``W = Σ w`` of the contributing channels' weights (apodized
+        sums only; ``None`` means ``W = M``).
     """
 
     intensity: np.ndarray | None = None
@@ -152,6 +166,14 @@ class Sums:
     s: np.ndarray | None = None
     q: np.ndarray | None = None
     m: np.ndarray | None = None
+    w: np.ndarray | None = None
+
+    def coherence_denominator(self) -> np.ndarray:
+        """``W Q`` (``M Q`` unweighted): the CF denominator, float64, from the raw sums."""
+        require(self.q is not None and self.m is not None, OptionError,
+                "the CF denominator needs the raw sums: request the 'sums' output")
+        w = self.m if self.w is None else self.w
+        return np.asarray(w, dtype=np.float64) * np.asarray(self.q, dtype=np.float64)
 
 
 def check_outputs(outputs) -> frozenset[str]:

@@ -168,8 +168,8 @@ class OpenCLEngine:
         return self._fresnel_value
 
     # -- program cache ----------------------------------------------------
-    def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int):
-        key = (mode.name, tuple(sorted(outs)), n_samples, n_range, self.vec)
+    def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int, apodize: bool = False):
+        key = (mode.name, tuple(sorted(outs)), n_samples, n_range, self.vec, apodize)
         k = self._kernels.get(key)
         if k is None:
             cl = _cl()
@@ -185,6 +185,7 @@ class OpenCLEngine:
                 f"-DWANT_CF={int('cf' in outs)}",
                 f"-DWANT_SUMS={int('sums' in outs)}",
                 f"-DVEC={self.vec}",
+                f"-DAPODIZE={int(apodize)}",
             ]
             try:
                 prg = cl.Program(self.ctx, kernel_source()).build(options=opts)
@@ -270,7 +271,9 @@ class OpenCLEngine:
         base_phase = carrier_phase(inp.centre_frequency_hz, inp.sample_rate_hz, base_int).astype(real)
         window = cell_windows(inp, grid, mode, range_window_m)
 
-        kernel = self._kernel(mode, outs, n_samp, n_r)
+        apodize = inp.weights is not None
+        kernel = self._kernel(mode, outs, n_samp, n_r, apodize)
+        b_weights = self._upload("weights", np.asarray(inp.weights if apodize else np.ones(1), dtype=real))
         b_data = self._upload("data", inter)
         b_chan = self._upload("chan", chan)
         b_range = self._upload("range", grid.ranges_m.astype(real))
@@ -279,7 +282,8 @@ class OpenCLEngine:
         b_bphase = self._upload("base_phase", base_phase)
 
         itemsize = np.dtype(real).itemsize
-        per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + 3 * ("sums" in outs)) + 4 * ("sums" in outs))
+        per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + (3 + apodize) * ("sums" in outs))
+                    + 4 * ("sums" in outs))
         wg_max = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device)
         local = max(1, min(self.local, wg_max))
         lanes = self.vec * local  # angles per tile
@@ -294,7 +298,9 @@ class OpenCLEngine:
             full["s"] = np.empty((2, n_a, n_r), dtype=real)
             full["q"] = res.q = np.empty((n_a, n_r), dtype=real)
             full["m"] = res.m = np.empty((n_a, n_r), dtype=np.int32)
-        planes = {"intensity": 1, "cf": 1, "s": 2, "q": 1, "m": 1}
+            if apodize:
+                full["w"] = res.w = np.empty((n_a, n_r), dtype=real)
+        planes = {"intensity": 1, "cf": 1, "s": 2, "q": 1, "m": 1, "w": 1}
         bufs = {name: self._buffer("out_" + name, planes[name] * rows * n_r * (4 if name == "m" else itemsize)
                                    if name in full else 16) for name in planes}
         for a0 in range(0, n_a, rows):
@@ -310,7 +316,7 @@ class OpenCLEngine:
                                        planes[name] * na_pad * n_r * arr.itemsize)
             if len(tiles):
                 kernel(self.queue, (len(tiles) * local,), (local,),
-                       b_data, b_chan, np.int32(n_chan), self._upload("tiles", tiles),
+                       b_data, b_chan, np.int32(n_chan), b_weights, self._upload("tiles", tiles),
                        self._upload("angle_sin", tab[0]), self._upload("angle_cos", tab[1]),
                        self._upload("win_first", np.ascontiguousarray(win[:, 0])),
                        self._upload("win_end", np.ascontiguousarray(win[:, 1])),
@@ -318,7 +324,7 @@ class OpenCLEngine:
                        real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
                        real(inp.samples_per_m), real(self._fresnel_range(o, inp.samples_per_m)),
                        real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
-                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"], np.int32(na_pad))
+                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"], bufs["w"], np.int32(na_pad))
             for name, arr in full.items():
                 if name == "s":
                     host = np.empty((2, na_pad, n_r), dtype=real)

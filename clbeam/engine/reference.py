@@ -2,7 +2,8 @@
 
 Written for clarity: straight-line travel times ``(|r - s| + |r - e_n|) / c``
 from plain square roots, each interpolation mode from its textbook formula,
-the sums of Holland et al. (2024) eqs. 1–2 with the 1/M normalisation of CF.
+the sums of Holland et al. (2024) eqs. 1–2 with the 1/M normalisation of CF
+(``1/W`` with receive apodization, :mod:`clbeam.apodization`).
 """
 
 from __future__ import annotations
@@ -124,6 +125,8 @@ class ReferenceEngine:
         s = np.zeros(n_a * n_r, dtype=np.complex128)
         q = np.zeros(n_a * n_r)
         m = np.zeros(n_a * n_r, dtype=np.int32)
+        wsum = np.zeros(n_a * n_r)
+        weights = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
         so = np.asarray(inp.source_offset_m, dtype=np.float64)
         fs, c = inp.sample_rate_hz, inp.sound_speed_m_s
         w = 2 * np.pi * inp.centre_frequency_hz / fs
@@ -139,17 +142,20 @@ class ReferenceEngine:
                     k = np.floor(pos)
                     v = v * np.exp(1j * (carrier_phase(inp.centre_frequency_hz, fs, np.where(np.isfinite(k), k, 0)) + w * (pos - k)))
                 ok = np.isfinite(v) & computed[sl]
-                s[sl] += np.where(ok, v, 0)
-                q[sl] += np.where(ok, np.abs(np.where(ok, v, 0)) ** 2, 0)
+                s[sl] += weights[n] * np.where(ok, v, 0)
+                q[sl] += weights[n] * np.where(ok, np.abs(np.where(ok, v, 0)) ** 2, 0)
                 m[sl] += ok
+                wsum[sl] += weights[n] * ok
         inten = np.abs(s) ** 2
         result = Sums()
         if "intensity" in outs:
             result.intensity = inten.reshape(n_a, n_r)
         if "cf" in outs:
             with np.errstate(invalid="ignore", divide="ignore"):
-                cf = np.where((m > 0) & (q > 0), inten / (m * q), 0.0)
+                cf = np.where((wsum > 0) & (q > 0), inten / (wsum * q), 0.0)
             result.cf = cf.reshape(n_a, n_r)
         if "sums" in outs:
             result.s, result.q, result.m = s.reshape(n_a, n_r), q.reshape(n_a, n_r), m.reshape(n_a, n_r)
+            if inp.weights is not None:
+                result.w = wsum.reshape(n_a, n_r)
         return result
