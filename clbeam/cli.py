@@ -8,6 +8,7 @@ turns it off).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import sys
 import time
@@ -142,16 +143,24 @@ def cmd_image(args) -> int:
 
         require(interp_mode(opts.interp).kernel_id >= 0, OptionError,
                 f"interpolation mode '{opts.interp}' exists in the reference backend only; add --backend reference")
+    require(args.stack >= 1, OptionError, f"--stack must be >= 1 ping, got {args.stack}")
+    require(args.stack == 1 or "cf" in opts.outputs, OptionError, "--stack needs the cf output")
     with PingFile(args.pings) as pings:
         grid = grid_from_args(args, pings.max_record_range_m())
-        imager = Imager(grid, opts, backend=args.backend, device=args.device)
         variables = list(opts.outputs)
+        stack = None
+        if args.stack > 1:
+            from .stacking import PingStack, stacked_ping_image
+
+            stack = PingStack(args.stack, opts.threshold)
+            opts = dataclasses.replace(opts, outputs=tuple(set(opts.outputs) | {"intensity", "sums"}))
+        imager = Imager(grid, opts, backend=args.backend, device=args.device)
         if "cf" in variables:
             variables.append("cf_smooth")
         if "sums" in variables:
             variables += ["s_r", "s_i", "q", "m"] + (["w"] if opts.apodization != "rect" else [])
         attrs = {"interp": opts.interp, "upsample": opts.upsample, "backend": args.backend,
-                 "apodization": opts.apodization, "calibrated": int(opts.calibrate),
+                 "apodization": opts.apodization, "calibrated": int(opts.calibrate), "stacked_pings": args.stack,
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         peaks = []
         t0 = time.perf_counter()
@@ -161,6 +170,11 @@ def cmd_image(args) -> int:
                 created = True
                 for ping in progress(pings, total=len(pings), desc="imaging", quiet=args.quiet):
                     img = imager.image(ping)
+                    if stack is not None:
+                        img = stacked_ping_image(
+                            img, stack.add(img), keep_sums="sums" in variables,
+                            peak_rows=lambda cf, inten, ping=ping, img=img: imager.peak_rows(ping, cf, inten,
+                                                                                              img.source_yz_m))
                     writer.write(ping.index, img, latitude=ping.latitude_deg, longitude=ping.longitude_deg,
                                  heading=ping.heading_deg)
                     peaks.extend(img.peaks)
@@ -210,6 +224,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("pings", metavar="PINGS.nc", help="ping file (NetCDF4 or Zarr, SPEC §7)")
     sp.add_argument("-o", "--output", required=True, metavar="IMAGES.nc", help="image file to write (.nc or .zarr)")
     sp.add_argument("--peaks", metavar="PEAKS.csv", help="also write the coherence peaks")
+    sp.add_argument("--stack", type=int, default=1, metavar="K",
+                    help="stack each ping with the K-1 before it: mean intensity, CF from the summed sums "
+                         "(default 1: no stacking)")
     add_grid_options(sp)
     add_engine_options(sp)
     common(sp)
