@@ -66,6 +66,8 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--apodization", default="rect", metavar="WINDOW",
                    help="receive window across the array: rect, hann, tukey[:alpha], chebyshev[:dB] "
                         "(default rect; CF becomes the weighted CF)")
+    g.add_argument("--mlh", action="store_true",
+                   help="merge the coherence peaks on one main-lobe arc into one detection (lobe-fitted position)")
     g.add_argument("--no-calibration", action="store_true",
                    help="ignore the file's element_gain_db / element_phase_deg (default: remove them)")
 
@@ -79,7 +81,7 @@ def options_from_args(args):
                           sound_speed_m_s=args.sound_speed, precision=args.precision,
                           seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
                           seabed_depth_m=args.seabed_depth, apodization=args.apodization,
-                          calibrate=not args.no_calibration)
+                          calibrate=not args.no_calibration, mlh=args.mlh)
 
 
 def grid_from_args(args, max_range_default: float):

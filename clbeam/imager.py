@@ -24,6 +24,7 @@ from .errors import ClbeamError, GeometryError, GridError, OptionError, require
 from .geometry import PolarGrid, check_positions, to_earth_frame
 from .ping import Ping
 from .io import PEAK_COLUMNS
+from .mlh import mlh_peak_rows
 from .postprocess import DEFAULT_THRESHOLD, coherence_peaks, hann_smooth, peak_row
 from .signal import compress_analytic, upsample_analytic
 
@@ -63,6 +64,10 @@ class ImagingOptions:
     calibrate : bool
         Remove the ping file's ``element_gain_db`` / ``element_phase_deg``
         from the channels (when the file has them).
+    mlh : bool
+        Merge the coherence peaks on one main-lobe arc into one detection
+        with a lobe-fitted position (:mod:`clbeam.mlh`); the peak rows then
+        carry ``n_merged``, ``arc_extent_deg`` and ``arc_range_spread_m``.
     """
 
     interp: str = "cubic"
@@ -75,6 +80,7 @@ class ImagingOptions:
     seabed_depth_m: float | None = None
     apodization: str = "rect"
     calibrate: bool = True
+    mlh: bool = False
 
     def __post_init__(self):
         interp_mode(self.interp)
@@ -264,10 +270,27 @@ class Imager:
     def peak_rows(self, ping: Ping, cf_smooth: np.ndarray, intensity: np.ndarray | None, centre_yz) -> list:
         """Rows of the peaks table for one ping (SPEC §3 step 7)."""
         g = self.grid
+        if self.options.mlh:
+            return mlh_peak_rows(ping, cf_smooth, intensity, g, centre_yz, threshold=self.options.threshold,
+                                 **mlh_tolerances(ping, g, self.options.sound_speed_m_s or ping.sound_speed_m_s))
         nav = {"latitude": ping.latitude_deg, "longitude": ping.longitude_deg, "heading": ping.heading_deg}
         return [peak_row(ping.index, g.ranges_m[ir], g.angles_deg[ia], centre_yz, cf_smooth[ia, ir],
                          float(intensity[ia, ir]) if intensity is not None else np.nan, nav)
                 for ia, ir in coherence_peaks(cf_smooth, self.options.threshold)]
+
+
+def mlh_tolerances(ping: Ping, grid: PolarGrid, sound_speed_m_s: float) -> dict:
+    """Range tolerance (m) and main-lobe width (direction cosine) of the arcs
+    of :mod:`clbeam.mlh` from this ping's pulse band and array width (the
+    SBP29 defaults where the pulse is an explicit waveform)."""
+    from .mlh import SBP29_BAND_HZ, default_range_tolerance_m, main_lobe_u
+
+    pulse = ping.pulse
+    band = (min(pulse.f0_hz, pulse.f1_hz), max(pulse.f0_hz, pulse.f1_hz)) \
+        if pulse is not None and pulse.f0_hz is not None and pulse.f0_hz != pulse.f1_hz else SBP29_BAND_HZ
+    width = float(np.ptp(ping.element_pos_m[:, 1])) * ping.n_channels / max(ping.n_channels - 1, 1)
+    return {"range_tolerance_m": default_range_tolerance_m(grid, band_hz=band, sound_speed_m_s=sound_speed_m_s),
+            "max_gap_u": main_lobe_u(0.5 * sum(band), max(width, 1e-3), sound_speed_m_s)}
 
 
 def check_grid_fits_memory(grid: PolarGrid, options: ImagingOptions, *, fraction: float = 0.5) -> None:
