@@ -66,6 +66,11 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--apodization", default="rect", metavar="WINDOW",
                    help="receive window across the array: rect, hann, tukey[:alpha], chebyshev[:dB] "
                         "(default rect; CF becomes the weighted CF)")
+    g.add_argument("--isospeed", action="store_true",
+                   help="straight rays at the file's sound speed even when it has a sound-speed profile (svp_*)")
+    g.add_argument("--sediment-speed", type=float, default=None, metavar="M/S",
+                   help="sediment interval velocity below the seabed (m/s): rays refract at the seabed "
+                        "(--seabed-depth, else picked per ping)")
     g.add_argument("--mlh", action="store_true",
                    help="merge the coherence peaks on one main-lobe arc into one detection (lobe-fitted position)")
     g.add_argument("--no-calibration", action="store_true",
@@ -81,7 +86,8 @@ def options_from_args(args):
                           sound_speed_m_s=args.sound_speed, precision=args.precision,
                           seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
                           seabed_depth_m=args.seabed_depth, apodization=args.apodization,
-                          calibrate=not args.no_calibration, mlh=args.mlh)
+                          calibrate=not args.no_calibration, mlh=args.mlh, use_svp=not args.isospeed,
+                          sediment_speed_m_s=args.sediment_speed)
 
 
 def grid_from_args(args, max_range_default: float):

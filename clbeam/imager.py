@@ -26,6 +26,7 @@ from .ping import Ping
 from .io import PEAK_COLUMNS
 from .mlh import mlh_peak_rows
 from .postprocess import DEFAULT_THRESHOLD, coherence_peaks, hann_smooth, peak_row
+from .raytrace import SoundSpeedProfile, eigenrays, travel_time_tables
 from .signal import compress_analytic, upsample_analytic
 
 log = logging.getLogger(__name__)
@@ -64,6 +65,14 @@ class ImagingOptions:
     calibrate : bool
         Remove the ping file's ``element_gain_db`` / ``element_phase_deg``
         from the channels (when the file has them).
+    use_svp : bool
+        Ray-trace the travel times through the ping file's sound-speed profile
+        (``svp_depth``, ``svp_speed``) when it has one (:mod:`clbeam.raytrace`);
+        ``False`` (or ``sound_speed_m_s``) images with straight rays.
+    sediment_speed_m_s : float or None
+        Sediment interval velocity (m/s) below a flat seabed at
+        ``seabed_depth_m`` (picked per ping when not given): rays refract at
+        the seabed (Snell) on their way to sub-bottom cells.
     mlh : bool
         Merge the coherence peaks on one main-lobe arc into one detection
         with a lobe-fitted position (:mod:`clbeam.mlh`); the peak rows then
@@ -80,6 +89,8 @@ class ImagingOptions:
     seabed_depth_m: float | None = None
     apodization: str = "rect"
     calibrate: bool = True
+    use_svp: bool = True
+    sediment_speed_m_s: float | None = None
     mlh: bool = False
 
     def __post_init__(self):
@@ -94,6 +105,9 @@ class ImagingOptions:
             require(len(band) == 2 and all(np.isfinite(band)) and band[0] + band[1] > 0, OptionError,
                     f"seabed band must be (above, below) metres with a positive width, got {self.seabed_band_m!r}")
             object.__setattr__(self, "seabed_band_m", band)
+        if self.sediment_speed_m_s is not None:
+            require(1300 <= self.sediment_speed_m_s <= 2000, OptionError,
+                    f"sediment speed must be within 1300-2000 m/s, got {self.sediment_speed_m_s!r}")
         if self.sound_speed_m_s is not None:
             require(1300 <= self.sound_speed_m_s <= 1700, OptionError,
                     f"sound speed must be within 1300-1700 m/s, got {self.sound_speed_m_s!r}")
@@ -161,6 +175,7 @@ class Imager:
         check_grid_fits_memory(grid, self.options)
         self.engine = engine if engine is not None else get_engine(backend, device=device,
                                                                    precision=self.options.precision)
+        self._tables: dict = {}
 
     # -- preparation ------------------------------------------------------
     def analytic_channels(self, ping: Ping) -> tuple[np.ndarray, np.ndarray]:
@@ -207,11 +222,47 @@ class Imager:
         fc = ping.pulse.centre_frequency_hz if ping.pulse is not None else None
         window = parse_window(self.options.apodization)
         weights = None if window.uniform else receive_weights(window, ping.element_pos_m[:, 1])[used]
-        return BeamformInput(
+        inp = BeamformInput(
             data=data, sample_rate_hz=fs, t0_s=ping.t0_s,
             sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
             element_offsets_m=elements - centre, source_offset_m=source - centre,
             centre_frequency_hz=fc or 0.0, weights=weights)
+        return self._with_tables(ping, inp, float(centre[2]))
+
+    # -- sound-speed profile ----------------------------------------------
+    def water_profile(self, ping: Ping):
+        """The ping's sound-speed profile when the travel times follow it, else ``None``."""
+        if self.options.use_svp and self.options.sound_speed_m_s is None:
+            return ping.svp
+        return None
+
+    def _with_tables(self, ping: Ping, inp: BeamformInput, centre_z_m: float) -> BeamformInput:
+        """``inp`` with the ray-traced travel-time tables of the grid (cached
+        per profile and grid centre depth) when a profile or a sediment speed
+        applies."""
+        profile = self.water_profile(ping)
+        c_sed = self.options.sediment_speed_m_s
+        if profile is None and c_sed is None:
+            return inp
+        if profile is None:
+            profile = SoundSpeedProfile.constant(inp.sound_speed_m_s)
+        if c_sed is not None:
+            depth = self.options.seabed_depth_m
+            if depth is None:
+                require(inp.n_channels > 0, OptionError, "cannot pick the seabed for the sediment speed: no usable channel")
+                depth = pick_seabed_depth_m(inp, profile=profile, centre_depth_m=centre_z_m)
+            # 1 cm steps: a picked seabed that moves with heave reuses its tables
+            profile = SoundSpeedProfile.with_sediment(profile, round(depth + centre_z_m, 2), c_sed)
+        key = (profile, round(centre_z_m, 6))
+        tables = self._tables.get(key)
+        if tables is None:
+            t0 = time.perf_counter()
+            tables = travel_time_tables(profile, self.grid, centre_z_m)
+            log.info("travel-time tables of a %d x %d grid in %.2f s", *self.grid.shape, time.perf_counter() - t0)
+            if len(self._tables) >= 4:
+                self._tables.pop(next(iter(self._tables)))
+            self._tables[key] = tables
+        return dataclasses.replace(inp, tables=tables)
 
     # -- imaging ----------------------------------------------------------
     def image(self, ping: Ping, *, range_window_m: np.ndarray | None = None) -> PingImage:
@@ -237,7 +288,8 @@ class Imager:
         if range_window_m is None and self.options.seabed_band_m is not None:
             depth = self.options.seabed_depth_m
             if depth is None and inp.n_channels:
-                depth = pick_seabed_depth_m(inp)
+                depth = pick_seabed_depth_m(inp, profile=self.water_profile(ping),
+                                            centre_depth_m=float(self.grid.centre(tuple(ping.source_pos_m[1:]))[1]))
             if depth is None:  # no usable channel: nothing to pick, the image is empty anyway
                 depth = float(self.grid.ranges_m[0])
             range_window_m = seabed_window_m(self.grid, depth, self.options.seabed_band_m)
@@ -320,20 +372,30 @@ def check_grid_reaches_record(inp: BeamformInput, grid: PolarGrid) -> None:
                         f"reaches ranges {0.5 * c * inp.t0_s:g}-{0.5 * c * t_end:g} m")
 
 
-def pick_seabed_depth_m(inp: BeamformInput, *, below_peak_db: float = 20.0) -> float:
+def pick_seabed_depth_m(inp: BeamformInput, *, below_peak_db: float = 20.0, profile=None,
+                        centre_depth_m: float = 0.0) -> float:
     """Seabed depth below the grid centre (m) from the first strong return.
 
     The channels' envelopes are summed; the first sample within
     ``below_peak_db`` of the strongest is the nadir seabed echo, at two-way
     time ``t`` and so depth ``c t / 2`` (the array spans metres, the water
-    hundreds: the offsets' effect is below a range cell).
+    hundreds: the offsets' effect is below a range cell).  With a
+    sound-speed ``profile`` (depth axis: the grid centre at
+    ``centre_depth_m``) the depth is where the vertical ray's one-way time
+    from the source is ``t / 2``.
     """
     env = np.nansum(np.abs(inp.data), axis=0)
     require(env.size > 0 and np.max(env) > 0, OptionError,
             "cannot pick the seabed: the ping has no signal; give the seabed depth")
     k = int(np.argmax(env >= np.max(env) * 10 ** (-below_peak_db / 20)))
-    # measured from the (heaved) source, returned below the grid centre
-    return 0.5 * inp.sound_speed_m_s * (inp.t0_s + k / inp.sample_rate_hz) + float(inp.source_offset_m[2])
+    one_way_s = 0.5 * (inp.t0_s + k / inp.sample_rate_hz)
+    source_z = float(inp.source_offset_m[2])
+    if profile is None:  # measured from the (heaved) source, returned below the grid centre
+        return inp.sound_speed_m_s * one_way_s + source_z
+    z_src = centre_depth_m + source_z
+    z = z_src + np.arange(1, 40001) * (float(np.max(profile.speeds_m_s)) * one_way_s / 40000)
+    t = eigenrays(profile, z_src, np.zeros_like(z), z).time_s
+    return float(np.interp(one_way_s, t, z)) - centre_depth_m
 
 
 def seabed_window_m(grid: PolarGrid, depth_m: float, band_m: tuple) -> np.ndarray:

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .errors import PingFileError, require
+from .errors import ClbeamError, PingFileError, require
+from .raytrace import SoundSpeedProfile
 from .signal import lfm_replica
 
 log = logging.getLogger(__name__)
@@ -87,6 +88,9 @@ class Ping:
         ``(channel,)`` bool, False for dead channels.
     roll_deg, heave_m : float
         Motion: roll (degrees, starboard down positive), heave (m, up positive).
+    svp : clbeam.raytrace.SoundSpeedProfile or None
+        Sound-speed profile from ``svp_depth(svp)`` (m, earth-frame ``z``
+        below the array reference point) and ``svp_speed(svp)`` (m/s).
     element_gain_db, element_phase_deg : numpy.ndarray or None
         ``(channel,)`` channel responses (dB, degree): the recorded analytic
         signal is ``10^(g/20) e^(j φ)`` times the true one (removed by
@@ -112,6 +116,7 @@ class Ping:
     index: int = 0
     element_gain_db: np.ndarray | None = None
     element_phase_deg: np.ndarray | None = None
+    svp: SoundSpeedProfile | None = None
     extras: dict = field(default_factory=dict)
 
     @property
@@ -299,6 +304,7 @@ class PingFile:
         self._need(self.kind == "analytic" or self.pulse is not None,
                    "missing pulse description: 'pulse_f0', 'pulse_f1', 'pulse_duration' or 'tx_waveform' (needed for kind='raw')")
 
+        self.svp = self._read_svp()
         self.element_gain_db = self._channel_response("element_gain_db", MAX_ABS_GAIN_DB)
         self.element_phase_deg = self._channel_response("element_phase_deg", None)
 
@@ -312,6 +318,19 @@ class PingFile:
                 self._valid = np.asarray(v.values).astype(bool)
             else:
                 self._valid_per_ping = v
+
+    def _read_svp(self):
+        present = [n for n in ("svp_depth", "svp_speed") if n in self.ds.variables]
+        if not present:
+            return None
+        self._need(len(present) == 2, f"variable '{present[0]}' needs its partner "
+                   f"'{'svp_speed' if present[0] == 'svp_depth' else 'svp_depth'}' (sound-speed profile)")
+        depth = self._numeric("svp_depth", self._var("svp_depth", (("svp",),)))
+        speed = self._numeric("svp_speed", self._var("svp_speed", (("svp",),)))
+        try:
+            return SoundSpeedProfile(depth, speed)
+        except ClbeamError as exc:
+            raise self._err(f"sound-speed profile 'svp_depth'/'svp_speed': {exc}") from None
 
     def _channel_response(self, name: str, limit: float | None) -> np.ndarray | None:
         v = self._var(name, (("channel",),), required=False)
@@ -396,6 +415,7 @@ class PingFile:
             index=i,
             element_gain_db=self.element_gain_db,
             element_phase_deg=self.element_phase_deg,
+            svp=self.svp,
         )
 
 

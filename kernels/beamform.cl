@@ -16,6 +16,13 @@
  *                       restores the carrier phase after interpolation
  *   N_SAMPLES, N_RANGE  record length and range cells
  *   WANT_INTENSITY, WANT_CF, WANT_SUMS   which outputs are written
+ *   TRAVEL_TABLE        1: ray-traced travel times (a sound-speed profile,
+ *                       clbeam/raytrace.py): per cell, the centre's two-way
+ *                       time (split like base), the ray's launch direction u
+ *                       and wavefront radius rho replace 2R/c, the cell's
+ *                       direction and R; each point adds d(o) with rho for R
+ *                       (exact formula, no Fresnel branch).  Unreachable
+ *                       cells carry an integer tap far before the record.
  *   APODIZE             1: receive weights w_n (clbeam/apodization.py):
  *                       S = sum w p, Q = sum w |p|^2, W = sum w,
  *                       CF = |S|^2 / (W Q) in [0, 1] (Cauchy-Schwarz)
@@ -43,7 +50,7 @@ typedef REAL_T real_t;
 /* u.o: the plane-wave part of an offset's delay */
 #define pp_(sn, cs, oy, oz) ((sn) * (oy) + (cs) * (oz))
 
-static inline vreal offset_delay_m(real_t R, vreal sn, vreal cs, real_t oy, real_t oz, real_t ox2, real_t q)
+static inline vreal offset_delay_m(vreal R, vreal sn, vreal cs, real_t oy, real_t oz, real_t ox2, real_t q)
 {
     /* |R u - o| from its components (accurate even where a cell sits on an
      * element, unlike R^2 - 2 R u.o + |o|^2); numerator without cancellation */
@@ -77,22 +84,41 @@ __kernel void beamform(
     __global real_t *restrict out_q,
     __global int *restrict out_m,
     __global real_t *restrict out_w,           /* [n_angle_padded][N_RANGE] W, APODIZE with WANT_SUMS */
-    const int n_angle_padded)
+    const int n_angle_padded,
+    /* TRAVEL_TABLE: [N_RANGE][n_angle_padded] per cell */
+    __global const int *restrict tab_int,      /* integer sample of (2 T - t0) fs */
+    __global const real_t *restrict tab_frac,  /* its fraction */
+    __global const real_t *restrict tab_phase, /* carrier phase of tab_int (rad), BASEBAND */
+    __global const real_t *restrict tab_sin,   /* launch direction u at the centre */
+    __global const real_t *restrict tab_cos,
+    __global const real_t *restrict tab_rho)   /* wavefront radius (m) */
 {
     const int tile = get_group_id(0);
     const int ia = tiles[2 * tile] + get_local_id(0) * VEC;  /* first lane's angle */
     const int ir = tiles[2 * tile + 1];
 
-    const vreal sn = VLOAD_R(0, angle_sin + ia), cs = VLOAD_R(0, angle_cos + ia);
     const vmask active = TO_VMASK(IMASK(ir >= VLOAD_I(0, win_first + ia)) & IMASK(ir < VLOAD_I(0, win_end + ia)));
+#if TRAVEL_TABLE
+    const size_t tc = (size_t)ir * n_angle_padded + ia;
+    const vreal sn = VLOAD_R(0, tab_sin + tc), cs = VLOAD_R(0, tab_cos + tc);
+    const vreal R = VLOAD_R(0, tab_rho + tc);
+    const vint k0 = VLOAD_I(0, tab_int + tc);
+    const vreal frac0 = VLOAD_R(0, tab_frac + tc)
+        + offset_delay_m(R, sn, cs, src_oy, src_oz, src_ox2, src_q) * samples_per_m;
+#if BASEBAND
+    const vreal phase0 = VLOAD_R(0, tab_phase + tc);
+#endif
+#else
+    const vreal sn = VLOAD_R(0, angle_sin + ia), cs = VLOAD_R(0, angle_cos + ia);
     const real_t R = range_m[ir];
     const int far = R >= fresnel_min_range_m;
     const real_t inv2R = (real_t)0.5 / R;
     const int k0 = base_int[ir];
     const vreal frac0 = base_frac[ir]
-        + offset_delay_m(R, sn, cs, src_oy, src_oz, src_ox2, src_q) * samples_per_m;
+        + offset_delay_m((vreal)R, sn, cs, src_oy, src_oz, src_ox2, src_q) * samples_per_m;
 #if BASEBAND
     const real_t phase0 = base_phase[ir];
+#endif
 #endif
     vreal sr = (vreal)0, si = (vreal)0, q = (vreal)0, m = (vreal)0;
 #if APODIZE
@@ -102,10 +128,14 @@ __kernel void beamform(
         const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2], ox2 = chan[4 * n + 3];
         /* far cells (a uniform branch: R is one per work-item) use the
          * Fresnel expansion of d(o) to third order, no sqrt or division */
+#if TRAVEL_TABLE
+        const vreal pos = frac0 + samples_per_m * offset_delay_m(R, sn, cs, oy, oz, ox2, oq);
+#else
         const vreal pos = frac0 + samples_per_m * (far
             ? (oq - pp_(sn, cs, oy, oz) * pp_(sn, cs, oy, oz)) * inv2R
                   * ((real_t)1 + (real_t)2 * inv2R * pp_(sn, cs, oy, oz)) - pp_(sn, cs, oy, oz)
-            : offset_delay_m(R, sn, cs, oy, oz, ox2, oq));
+            : offset_delay_m((vreal)R, sn, cs, oy, oz, ox2, oq));
+#endif
         vreal t;
         const vint k = k0 + split_position(pos, &t);
         const vmask inside = TO_VMASK(IMASK(k >= TAPS_BEFORE) & IMASK(k < N_SAMPLES - TAPS_AFTER));

@@ -22,6 +22,13 @@ data[2, 40:45] = np.nan
 eo = np.zeros((6, 3))
 eo[:, 1] = np.linspace(-1.5, 1.5, 6)
 inp = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0)
+from clbeam.raytrace import SoundSpeedProfile, travel_time_tables  # noqa: E402
+
+# rays through a strong gradient: some cells of the tiny grid unreachable
+tabled = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0,
+                       tables=travel_time_tables(SoundSpeedProfile([0.0, 0.5], [1480.0, 1700.0]),
+                                                 PolarGrid.regular(range_res_m=0.4, angle_res_deg=20, max_range_m=4.0,
+                                                                   angles_deg=(-80, 80))))
 weighted = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0,
                          weights=np.array([0.1, 0.5, 1.0, 1.0, 0.5, 0.0]))
 # ranges from the source (delays before sample 0) to beyond the record's end
@@ -46,14 +53,17 @@ for precision, layout in runs:
         rel = np.linalg.norm(got.intensity - want.intensity) / np.linalg.norm(want.intensity)
         m_equal = np.array_equal(got.m, want.m)
         print(f"variant {precision} {layout} {mode} rel={rel:.2e} m_equal={m_equal} m_range={want.m.min()}-{want.m.max()}")
-    # receive apodization (weights buffer, W output) in every mode of this layout
-    for mode, spec in INTERP_MODES.items():
-        if spec.kernel_id < 0:
-            continue
-        got = eng.beamform(weighted, grid, interp=mode, outputs=("intensity", "cf", "sums"))
-        want = ref.beamform(weighted, grid, interp=mode, outputs=("intensity", "cf", "sums"))
-        rel = max(np.linalg.norm(got.intensity - want.intensity) / np.linalg.norm(want.intensity),
-                  np.max(np.abs(got.w - want.w)) / weighted.weights.sum(), np.max(np.abs(got.cf - want.cf)))
-        m_equal = np.array_equal(got.m, want.m)
-        print(f"variant apodized {precision} {layout} {mode} rel={rel:.2e} m_equal={m_equal} "
-              f"m_range={want.m.min()}-{want.m.max()}")
+    # receive apodization (weights buffer, W output) and ray-traced tables in every mode of this layout
+    for label, case in (("apodized", weighted), ("tables", tabled)):
+        for mode, spec in INTERP_MODES.items():
+            if spec.kernel_id < 0:
+                continue
+            got = eng.beamform(case, grid, interp=mode, outputs=("intensity", "cf", "sums"))
+            want = ref.beamform(case, grid, interp=mode, outputs=("intensity", "cf", "sums"))
+            rel = max(np.linalg.norm(got.intensity - want.intensity) / np.linalg.norm(want.intensity),
+                      np.max(np.abs(got.cf - want.cf)))
+            if case.weights is not None:
+                rel = max(rel, np.max(np.abs(got.w - want.w)) / case.weights.sum())
+            m_equal = np.array_equal(got.m, want.m)
+            print(f"variant {label} {precision} {layout} {mode} rel={rel:.2e} m_equal={m_equal} "
+                  f"m_range={want.m.min()}-{want.m.max()}")

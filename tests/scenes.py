@@ -86,3 +86,27 @@ def bandlimited_noise(shape, *, f_lo=2000.0, f_hi=9000.0, fs=FS, seed=0) -> np.n
     f = np.fft.fftfreq(shape[-1], 1 / fs)
     spec[..., (f < f_lo) | (f > f_hi)] = 0
     return 2 * np.fft.ifft(spec, axis=-1)
+
+
+def profile_point_ping(targets_yz_m, profile, *, n_channels=64, record_s=1.5, t0_s=0.0, pulse=PULSE,
+                       fs=FS) -> Ping:
+    """A ping of point scatterers (earth-frame ``(y, z)``, m) in a stratified
+    ocean: each echo's delay is the exact eigenray time source → scatterer →
+    element (:func:`clbeam.raytrace.element_travel_times`), spreading
+    ``1 / (|r - s| |r - e_n|)``; the file's sound speed is the profile's at
+    the transducers, and ``svp`` carries the profile."""
+    from clbeam.raytrace import element_travel_times
+
+    targets = np.atleast_2d(np.asarray(targets_yz_m, dtype=float))
+    elements = sbp_elements(n_channels)
+    t_src = element_travel_times(profile, np.zeros((1, 2)), targets)[0]
+    t_rx = element_travel_times(profile, elements[:, 1:], targets)
+    n_samples = int(round(record_s * fs))
+    replica = pulse.replica(fs)
+    out = np.zeros((n_channels, n_samples))
+    for j, r in enumerate(targets):
+        spread = np.hypot(*r) * np.hypot(r[0] - elements[:, 1], r[1] - elements[:, 2])
+        out += (1.0 / spread)[:, None] * delayed(replica, t_src[j] + t_rx[:, j] - t0_s, n_samples, fs)
+    return Ping(samples=out, kind="raw", sample_rate_hz=fs, t0_s=t0_s, sound_speed_m_s=float(profile.speed(0.0)),
+                element_pos_m=elements, source_pos_m=np.zeros(3), channel_valid=np.ones(n_channels, dtype=bool),
+                pulse=pulse, svp=profile)

@@ -33,8 +33,8 @@ def test_kernels_are_clean_under_oclgrind():
                 and "Function: clGetDeviceInfo" not in b]
     assert not problems, "\n".join(problems[:20])
     variants = [line for line in r.stdout.splitlines() if line.startswith("variant")]
-    assert len(variants) >= 48  # 6 modes x (2 precisions + 2 more layouts), each plain and apodized
-    assert sum("apodized" in line for line in variants) >= 24
+    assert len(variants) >= 72  # 6 modes x (2 precisions + 2 more layouts), each plain, apodized, ray-traced
+    assert sum("apodized" in line for line in variants) >= 24 and sum("tables" in line for line in variants) >= 24
     for line in variants:
         rel = float(re.search(r"rel=(\S+)", line).group(1))
         assert rel < 1e-4 and "m_equal=True" in line, line

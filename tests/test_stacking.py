@@ -4,6 +4,8 @@ on a simulated Line 1 (recall of the pipelines, false coherence peaks)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -30,7 +32,7 @@ def pings():
     for seed in range(3):
         p = point_ping([polar_point(50.0, 10.0)], record_s=0.1)
         noise = np.random.default_rng(seed).normal(0, 3e-5, p.samples.shape)
-        out.append(type(p)(**{**p.__dict__, "samples": p.samples + noise, "index": seed}))
+        out.append(dataclasses.replace(p, samples=p.samples + noise, index=seed))
     return out
 
 

@@ -91,6 +91,13 @@ class BeamformInput:
     weights : numpy.ndarray or None
         ``(n_channel,)`` receive apodization ``w_n >= 0``
         (:mod:`clbeam.apodization`); ``None``: all 1, the unweighted sums.
+    tables : clbeam.raytrace.TravelTimeTables or None
+        Ray-traced one-way times from the grid centre to every cell of the
+        grid this input is imaged on (a sound-speed profile); ``None``:
+        isospeed straight rays at ``sound_speed_m_s``.  Each point ``o`` (the
+        source, an element) then adds ``d(o) = |rho u - o| - rho`` at the
+        centre's speed, with ``u`` the ray's launch direction and ``rho`` its
+        wavefront radius (:func:`clbeam.raytrace.offset_time_approx`).
     """
 
     data: np.ndarray
@@ -101,6 +108,7 @@ class BeamformInput:
     source_offset_m: np.ndarray
     centre_frequency_hz: float = 0.0
     weights: np.ndarray | None = None
+    tables: object | None = None
 
     def __post_init__(self):
         d = self.data
@@ -134,8 +142,26 @@ class BeamformInput:
 
     @property
     def samples_per_m(self) -> float:
-        """Samples per metre of path, ``fs / c``."""
-        return self.sample_rate_hz / self.sound_speed_m_s
+        """Samples per metre of path, ``fs / c`` (``c`` at the grid centre with tables)."""
+        c = self.sound_speed_m_s if self.tables is None else self.tables.centre_speed_m_s
+        return self.sample_rate_hz / c
+
+    def check_tables(self, grid: PolarGrid) -> None:
+        """Raise :class:`GridError` unless the travel-time tables are those of ``grid``."""
+        if self.tables is None:
+            return
+        g = self.tables.grid
+        require(g.shape == grid.shape and np.array_equal(g.ranges_m, grid.ranges_m)
+                and np.array_equal(g.angles_deg, grid.angles_deg), GridError,
+                f"the travel-time tables are for a {g.shape} grid, not this {grid.shape} one")
+
+    def cell_base_samples(self, grid: PolarGrid) -> np.ndarray:
+        """Sample position (float64) of the centre's two-way time to each cell,
+        ``(n_angle, n_range)``: ``(2 T - t0) fs`` from the tables (NaN where no
+        ray reaches), else ``(2 R / c - t0) fs`` broadcast over angles."""
+        if self.tables is None:
+            return np.broadcast_to(range_bases(self, grid)[None, :], grid.shape)
+        return (2.0 * self.tables.time_s - self.t0_s) * self.sample_rate_hz
 
 
 @dataclass
@@ -212,16 +238,24 @@ def cell_windows(inp: BeamformInput, grid: PolarGrid, mode: InterpMode,
     cannot contribute.  Skipped cells get zeros, exactly what they would get
     when computed.
     """
-    base = range_bases(inp, grid)
     reach = (np.linalg.norm(inp.source_offset_m) + np.max(np.linalg.norm(inp.element_offsets_m, axis=1), initial=0.0))
     reach = reach * inp.samples_per_m + 2.0
-    ok = (base + reach >= mode.taps_before) & (base - reach <= inp.n_samples - 1 - mode.taps_after)
     n_a, n_r = grid.shape
     win = np.zeros((n_a, 2), dtype=np.int32)
-    if not ok.any():
-        return win
-    lo, hi = int(np.argmax(ok)), int(n_r - np.argmax(ok[::-1]))
-    win[:, 0], win[:, 1] = lo, hi
+    if inp.tables is None:
+        base = range_bases(inp, grid)
+        ok = (base + reach >= mode.taps_before) & (base - reach <= inp.n_samples - 1 - mode.taps_after)
+        if not ok.any():
+            return win
+        win[:, 0], win[:, 1] = int(np.argmax(ok)), int(n_r - np.argmax(ok[::-1]))
+    else:  # per angle: the ray-traced time grows with range along an angle
+        inp.check_tables(grid)
+        base = inp.cell_base_samples(grid)
+        with np.errstate(invalid="ignore"):
+            ok = (base + reach >= mode.taps_before) & (base - reach <= inp.n_samples - 1 - mode.taps_after)
+        any_ok = ok.any(axis=1)
+        win[:, 0] = np.where(any_ok, np.argmax(ok, axis=1), 0)
+        win[:, 1] = np.where(any_ok, n_r - np.argmax(ok[:, ::-1], axis=1), 0)
     if range_window_m is not None:
         user = user_windows(grid, range_window_m)
         win[:, 0] = np.maximum(win[:, 0], user[:, 0])

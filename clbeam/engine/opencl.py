@@ -168,8 +168,9 @@ class OpenCLEngine:
         return self._fresnel_value
 
     # -- program cache ----------------------------------------------------
-    def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int, apodize: bool = False):
-        key = (mode.name, tuple(sorted(outs)), n_samples, n_range, self.vec, apodize)
+    def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int, apodize: bool = False,
+                table: bool = False):
+        key = (mode.name, tuple(sorted(outs)), n_samples, n_range, self.vec, apodize, table)
         k = self._kernels.get(key)
         if k is None:
             cl = _cl()
@@ -186,6 +187,7 @@ class OpenCLEngine:
                 f"-DWANT_SUMS={int('sums' in outs)}",
                 f"-DVEC={self.vec}",
                 f"-DAPODIZE={int(apodize)}",
+                f"-DTRAVEL_TABLE={int(table)}",
             ]
             try:
                 prg = cl.Program(self.ctx, kernel_source()).build(options=opts)
@@ -272,7 +274,11 @@ class OpenCLEngine:
         window = cell_windows(inp, grid, mode, range_window_m)
 
         apodize = inp.weights is not None
-        kernel = self._kernel(mode, outs, n_samp, n_r, apodize)
+        table = inp.tables is not None
+        if table:
+            inp.check_tables(grid)
+            cell_tabs = cell_tables(inp, grid, real)
+        kernel = self._kernel(mode, outs, n_samp, n_r, apodize, table)
         b_weights = self._upload("weights", np.asarray(inp.weights if apodize else np.ones(1), dtype=real))
         b_data = self._upload("data", inter)
         b_chan = self._upload("chan", chan)
@@ -282,8 +288,8 @@ class OpenCLEngine:
         b_bphase = self._upload("base_phase", base_phase)
 
         itemsize = np.dtype(real).itemsize
-        per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + (3 + apodize) * ("sums" in outs))
-                    + 4 * ("sums" in outs))
+        per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + (3 + apodize) * ("sums" in outs) + 5 * table)
+                    + 4 * ("sums" in outs) + 4 * table)
         wg_max = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device)
         local = max(1, min(self.local, wg_max))
         lanes = self.vec * local  # angles per tile
@@ -311,6 +317,16 @@ class OpenCLEngine:
             win = np.zeros((na_pad, 2), dtype=np.int32)
             win[:na] = window[a0:a0 + na]
             tiles = launch_tiles(win, lanes)
+            tab_bufs = [self._buffer("tab_" + k, 16) for k in TABLE_NAMES]
+            if table:
+                tab_bufs = []
+                for k in TABLE_NAMES:
+                    a = cell_tabs[k]
+                    t = np.zeros((n_r, na_pad), dtype=a.dtype)
+                    t[:, :na] = a[a0:a0 + na].T
+                    if k == "int":
+                        t[:, na:] = UNREACHABLE_TAP
+                    tab_bufs.append(self._upload("tab_" + k, t))
             for name, arr in full.items():
                 cl.enqueue_fill_buffer(self.queue, bufs[name], np.zeros(1, dtype=arr.dtype), 0,
                                        planes[name] * na_pad * n_r * arr.itemsize)
@@ -324,7 +340,8 @@ class OpenCLEngine:
                        real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
                        real(inp.samples_per_m), real(self._fresnel_range(o, inp.samples_per_m)),
                        real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
-                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"], bufs["w"], np.int32(na_pad))
+                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"], bufs["w"], np.int32(na_pad),
+                       *tab_bufs)
             for name, arr in full.items():
                 if name == "s":
                     host = np.empty((2, na_pad, n_r), dtype=real)
@@ -336,6 +353,35 @@ class OpenCLEngine:
         if "sums" in outs:
             res.s = full["s"][0] + 1j * full["s"][1]
         return res
+
+
+#: names of the per-cell travel-time tables, in the kernel's argument order
+TABLE_NAMES = ("int", "frac", "phase", "sin", "cos", "rho")
+#: integer tap of a cell no ray reaches: far before any record, so never inside
+UNREACHABLE_TAP = -(1 << 30)
+
+
+def cell_tables(inp: BeamformInput, grid: PolarGrid, real=np.float32) -> dict:
+    """The kernel's per-cell tables ``(n_angle, n_range)`` from ``inp.tables``:
+    the centre's two-way sample position split into an integer and a
+    fraction (float64 on the host), its carrier phase, the launch direction
+    and the wavefront radius; unreachable cells get :data:`UNREACHABLE_TAP`
+    and finite dummies."""
+    tab = inp.tables
+    base = inp.cell_base_samples(grid)
+    ok = np.isfinite(base)
+    require(bool(np.all(np.abs(base[ok]) < 2**31 - 2**20)), GridError,
+            "grid ranges reach beyond 2^31 samples of the record; reduce the maximum range")
+    k = np.where(ok, np.floor(np.where(ok, base, 0.0)), 0.0)
+    th = np.deg2rad(grid.angles_deg)[:, None]
+    return {
+        "int": np.where(ok, k, UNREACHABLE_TAP).astype(np.int32),
+        "frac": np.where(ok, base - k, 0.0).astype(real),
+        "phase": carrier_phase(inp.centre_frequency_hz, inp.sample_rate_hz, k.astype(np.int64)).astype(real),
+        "sin": np.where(ok, tab.launch_sin, np.sin(th)).astype(real),
+        "cos": np.where(ok, tab.launch_cos, np.cos(th)).astype(real),
+        "rho": np.where(ok, tab.wavefront_radius_m, grid.ranges_m[None, :]).astype(real),
+    }
 
 
 def launch_tiles(window: np.ndarray, local_angles: int) -> np.ndarray:

@@ -129,14 +129,27 @@ class ReferenceEngine:
         weights = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
         so = np.asarray(inp.source_offset_m, dtype=np.float64)
         fs, c = inp.sample_rate_hz, inp.sound_speed_m_s
+        if inp.tables is not None:
+            inp.check_tables(grid)
+            tab = inp.tables
+            # two-way time from the centre, and each point's ray direction and wavefront radius
+            t_centre = 2.0 * tab.time_s.ravel()
+            ray_y, ray_z = tab.launch_sin.ravel(), tab.launch_cos.ravel()
+            rho = tab.wavefront_radius_m.ravel()
+            c = tab.centre_speed_m_s
         w = 2 * np.pi * inp.centre_frequency_hz / fs
         for b0 in range(0, n_a * n_r, BLOCK_CELLS):
             sl = slice(b0, min(b0 + BLOCK_CELLS, n_a * n_r))
-            y, z = cell_y[sl], cell_z[sl]
+            if inp.tables is None:  # straight rays: the path length from each point to the cell
+                y, z = cell_y[sl], cell_z[sl]
+                t_base = 0.0
+            else:  # rays from the centre; a point's path differs by |rho u - o| - rho
+                y, z = rho[sl] * ray_y[sl], rho[sl] * ray_z[sl]
+                t_base = t_centre[sl] - 2 * rho[sl] / c
             d_src = np.sqrt(so[0] ** 2 + (y - so[1]) ** 2 + (z - so[2]) ** 2)
             for n, o in enumerate(inp.element_offsets_m):
                 d_rx = np.sqrt(o[0] ** 2 + (y - o[1]) ** 2 + (z - o[2]) ** 2)
-                pos = ((d_src + d_rx) / c - inp.t0_s) * fs
+                pos = (t_base + (d_src + d_rx) / c - inp.t0_s) * fs
                 v = interpolate(data[n], pos, mode)
                 if mode.baseband:
                     k = np.floor(pos)
