@@ -34,6 +34,15 @@ pipeline's ``ka`` response) are applied to short time blocks of each echo
 set before the pulse convolution, with a per-scatterer band-centre
 correction inside a block.
 
+With a sound-speed profile (``[water]``: ``svp_depth_m``, ``svp_speed_m_s``
+on the earth-frame ``z`` axis) the delays are ray traced instead
+(:mod:`clbeam.raytrace`): ``τ_n`` is the eigenray time from the source to
+the scatterer plus the one from the scatterer to element ``n``, through the
+water profile, or for buried scatterers through it and the sediment below
+the seabed; the image-source echoes are unfolded through the layers they
+cross.  The spreading stays ``1 / (|r - s| |r - e_n|)`` on the straight
+distances.
+
 See ``docs/simulator.md`` for every parameter, the choices behind the
 built-in scenes and what is left out.
 """
@@ -55,11 +64,13 @@ from pathlib import Path
 
 import numpy as np
 import scipy.fft
+import scipy.optimize
 import xarray as xr
 
 from . import __version__
 from .errors import ClbeamError, OptionError, require
 from .geometry import to_earth_frame
+from .raytrace import SoundSpeedProfile, eigenrays
 from .signal import lfm_replica
 
 log = logging.getLogger(__name__)
@@ -548,6 +559,64 @@ class Model:
                 f"model.line_spacing_m must be > 0 m, got {self.line_spacing_m}")
 
 
+WATER_SPEED_RANGE_M_S = (1300.0, 1700.0)
+"""Sound speeds (m/s) a water column (``sound_speed_m_s``, ``[water]``) may have."""
+
+
+@dataclass(frozen=True)
+class Water:
+    """The water column's sound-speed profile (``[water]``).
+
+    Depths are on the earth-frame ``z`` axis, like ``element_z``: metres
+    below the transducers' mean depth (the array reference point), positive
+    down; the sea surface is at ``z = -draft``.  The speed is linear in depth
+    between points and constant beyond the first and the last
+    (:class:`clbeam.raytrace.SoundSpeedProfile`).  Below the seabed the
+    sediment's speed (``seabed.sound_speed_ratio`` times the profile's speed
+    at the seabed) replaces it.
+
+    Attributes
+    ----------
+    svp_depth_m : tuple of float
+        Profile depths (m), strictly increasing.
+    svp_speed_m_s : tuple of float
+        Sound speed at each depth (m/s), 1300-1700.
+    """
+
+    svp_depth_m: tuple = ()
+    svp_speed_m_s: tuple = ()
+
+    def __post_init__(self):
+        d, c = (v.tolist() if isinstance(v, np.ndarray) else v for v in (self.svp_depth_m, self.svp_speed_m_s))
+        for key, v in (("svp_depth_m", d), ("svp_speed_m_s", c)):
+            require(isinstance(v, (list, tuple)) and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                         for x in v), OptionError,
+                    f"scene key 'water.{key}' must be a list of numbers, got {v!r}")
+            require(len(v) >= 1, OptionError,
+                    f"scene key 'water.{key}' needs at least one value (a sound-speed profile)")
+            require(all(math.isfinite(x) for x in v), OptionError,
+                    f"scene key 'water.{key}' must be finite, got {list(v)}")
+        require(len(d) == len(c), OptionError,
+                f"water.svp_depth_m has {len(d)} depths but water.svp_speed_m_s has {len(c)} speeds")
+        lo, hi = WATER_SPEED_RANGE_M_S
+        for z, v in zip(d, c):
+            require(lo <= v <= hi, OptionError,
+                    f"water.svp_speed_m_s must be within {lo:g}-{hi:g} m/s, got {v:g} at depth {z:g} m")
+        for a, b in zip(d, d[1:]):
+            require(b > a, OptionError, f"water.svp_depth_m must increase strictly, got {a:g} followed by {b:g} m")
+        object.__setattr__(self, "svp_depth_m", tuple(float(x) for x in d))
+        object.__setattr__(self, "svp_speed_m_s", tuple(float(x) for x in c))
+
+    def profile(self) -> SoundSpeedProfile:
+        """The profile as a :class:`clbeam.raytrace.SoundSpeedProfile`."""
+        return SoundSpeedProfile(np.array(self.svp_depth_m), np.array(self.svp_speed_m_s))
+
+    @property
+    def transducer_speed_m_s(self) -> float:
+        """The profile's speed at the transducers (``z = 0``, m/s)."""
+        return float(self.profile().speed(0.0))
+
+
 @dataclass(frozen=True)
 class Scene:
     """A whole scene: sonar, line, motion, environment, targets, noise.
@@ -555,7 +624,12 @@ class Scene:
     Attributes
     ----------
     sound_speed_m_s : float
-        Isospeed water sound speed (m/s).
+        Isospeed water sound speed (m/s); with a ``[water]`` profile, the
+        profile's speed at the transducers (``z = 0``), which a scene file
+        may leave out.
+    water : Water or None
+        Sound-speed profile; ``None``: isospeed water at ``sound_speed_m_s``
+        (straight rays).
     snr_db : float or None
         Noise level: ``20 log10(A_ref / σ)``, ``σ`` the standard deviation of
         the white Gaussian noise per raw sample and ``A_ref`` the raw
@@ -576,10 +650,16 @@ class Scene:
     subbottom: SubBottom | None = None
     targets: tuple = ()
     model: Model = field(default_factory=Model)
+    water: Water | None = None
 
     def __post_init__(self):
         require(1300 <= self.sound_speed_m_s <= 1700, OptionError,
                 f"sound_speed_m_s must be within 1300-1700 m/s, got {self.sound_speed_m_s}")
+        if self.water is not None:
+            c0 = self.water.transducer_speed_m_s
+            require(abs(self.sound_speed_m_s - c0) <= 1e-6, OptionError,
+                    f"sound_speed_m_s {self.sound_speed_m_s:g} m/s is not the [water] profile's speed at the "
+                    f"transducers (z = 0), {c0:.10g} m/s: leave sound_speed_m_s out (or set it to that)")
         require(self.subbottom is None or self.seabed is not None, OptionError,
                 "a [subbottom] needs a [seabed]")
         names = [t.name for t in self.targets]
@@ -594,6 +674,8 @@ class Scene:
         """The scene as plain data (the ``scene_json`` attribute of a simulated file)."""
         d = dataclasses.asdict(self)
         del d["targets"]
+        if d["water"] is None:
+            del d["water"]
         d["target"] = [dict(kind=_TARGET_KINDS_INV[type(t)], **dataclasses.asdict(t)) for t in self.targets]
         return d
 
@@ -675,6 +757,10 @@ def scene_from_mapping(data: dict, *, name: str | None = None) -> Scene:
         require(kind in _TARGET_KINDS, OptionError,
                 f"scene key 'target[{i}].kind' must be one of {sorted(_TARGET_KINDS)}, got {kind!r}")
         targets.append(_from_mapping(_TARGET_KINDS[kind], t, f"target[{i}]"))
+    if data.get("water") is not None and "sound_speed_m_s" not in data:
+        # the transducers' speed follows from the profile
+        water = _convert(Water, data["water"], "water")
+        data["sound_speed_m_s"] = water.transducer_speed_m_s
     scene = _from_mapping(Scene, data, "")
     scene = dataclasses.replace(scene, targets=tuple(targets))
     if name is not None:
@@ -716,7 +802,7 @@ def load_scene(source: str | os.PathLike | Scene, *, pings: int | None = None, m
     Parameters
     ----------
     source : str, path-like or Scene
-        ``"line1"``, ``"line4"``, ``"point"``, ``"avo2"`` (see :func:`list_scenes`), a
+        ``"line1"``, ``"line4"``, ``"point"``, ``"avo2"``, ``"svp1km"`` (see :func:`list_scenes`), a
         ``.toml`` file, or a :class:`Scene` (overrides applied to it).
     pings : int, optional
         Number of pings on the line.
@@ -884,6 +970,220 @@ def two_way_sediment_path_m(horizontal_m: float, height_m: float, burial_m: floa
 
 
 # ---------------------------------------------------------------------------
+# Rays through a sound-speed profile (scenes with [water])
+# ---------------------------------------------------------------------------
+RAY_PAIRS = 1 << 18
+"""End-scatterer pairs per call of the eigenray solver (memory bound)."""
+SEABED_RAY_TOL_REL = 1e-9
+"""Seabed crossing of a ray to a point below a sloped seabed: converged when
+the horizontal miss is below this times the distance (1 µm at 1 km)."""
+
+
+def _ray_legs(profile: SoundSpeedProfile, ends: np.ndarray, pos: np.ndarray, *, directions: bool = True) -> dict:
+    """Direct eigenrays between ``ends`` ``(P, 3)`` and positions ``(S, 3)``
+    (earth frame, m; ``z`` on the profile's axis) in a horizontally
+    stratified medium: each pair's ray lies in their vertical plane, solved
+    from the shallower end (:func:`clbeam.raytrace.eigenrays`).
+
+    Returns
+    -------
+    dict
+        ``time_s`` ``(P, S)`` one-way times (s), NaN where no direct ray joins
+        the pair; with ``directions`` also ``p`` ``(P, S)`` the magnitude of the
+        ray parameter (s/m), ``end_dir`` and ``pos_dir`` ``(P, S, 3)`` the
+        unit propagation directions at the end (leaving it) and at the
+        position (arriving there from the end).
+    """
+    ends = np.asarray(ends, dtype=np.float64)
+    pos = np.asarray(pos, dtype=np.float64)
+    n_e, n_s = len(ends), len(pos)
+    out = {"time_s": np.full((n_e, n_s), np.nan)}
+    if directions:
+        out.update(p=np.full((n_e, n_s), np.nan), end_dir=np.full((n_e, n_s, 3), np.nan),
+                   pos_dir=np.full((n_e, n_s, 3), np.nan))
+    step = max(1, RAY_PAIRS // max(n_e, 1))
+    for a in range(0, n_s, step):
+        sl = slice(a, min(a + step, n_s))
+        d = pos[None, sl, :] - ends[:, None, :]
+        rho = np.hypot(d[..., 0], d[..., 1])
+        z_end = np.broadcast_to(ends[:, None, 2], rho.shape)
+        z_pos = np.broadcast_to(pos[None, sl, 2], rho.shape)
+        down = z_pos >= z_end
+        r = eigenrays(profile, np.where(down, z_end, z_pos), rho, np.where(down, z_pos, z_end))
+        out["time_s"][:, sl] = r.time_s
+        if not directions:
+            continue
+        out["p"][:, sl] = np.abs(r.ray_parameter_s_m)
+        h = d[..., :2] / np.maximum(rho, 1e-300)[..., None]
+        # a ray solved from the position down to the end runs backwards
+        for key, s_, c_ in (("end_dir", np.where(down, r.launch_sin, r.arrival_sin),
+                             np.where(down, r.launch_cos, -r.arrival_cos)),
+                            ("pos_dir", np.where(down, r.arrival_sin, r.launch_sin),
+                             np.where(down, r.arrival_cos, -r.launch_cos))):
+            out[key][:, sl, :2] = h * np.abs(s_)[..., None]
+            out[key][:, sl, 2] = c_
+    return out
+
+
+def _seabed_ray_legs(water: SoundSpeedProfile, ends: np.ndarray, pos: np.ndarray, seabed_z: np.ndarray,
+                     sediment_speed_m_s: np.ndarray, *, directions: bool = True) -> dict:
+    """Like :func:`_ray_legs` for positions below a locally flat seabed.
+
+    Position ``j`` lies below a horizontal interface at ``seabed_z[j]`` with
+    the constant sediment speed ``sediment_speed_m_s[j]`` below it and the
+    ``water`` profile above; the ends lie above it.  The ray is the water
+    eigenray from the end to the seabed crossing at horizontal distance
+    ``y_w`` plus a straight sediment segment at Snell's angle
+    (``sin θ_s = p c_s``); Newton's method on ``y_w`` makes the two meet
+    (``y_w + b tan θ_s = ρ``, ``b`` the depth below the seabed).  The time is
+    the Fermat time through the crossing point, stationary in ``y_w``.  For
+    one seabed depth this is the eigenray of
+    :meth:`~clbeam.raytrace.SoundSpeedProfile.with_sediment`; per position it
+    handles a sloped seabed taken as locally flat.
+    """
+    ends = np.asarray(ends, dtype=np.float64)
+    pos = np.asarray(pos, dtype=np.float64)
+    d = pos[None, :, :] - ends[:, None, :]
+    rho = np.hypot(d[..., 0], d[..., 1])
+    z0 = np.broadcast_to(ends[:, None, 2], rho.shape)
+    zs = np.broadcast_to(np.asarray(seabed_z, dtype=np.float64)[None, :], rho.shape)
+    b = np.maximum(np.broadcast_to(pos[None, :, 2], rho.shape) - zs, 0.0)
+    cs = np.broadcast_to(np.asarray(sediment_speed_m_s, dtype=np.float64)[None, :], rho.shape)
+    c_end = water.speed(z0)
+    tol = SEABED_RAY_TOL_REL * np.hypot(rho, zs + b - z0)
+    yw = rho * (zs - z0) / np.maximum(zs + b - z0, 1e-300)       # the straight line's crossing
+    for _ in range(40):
+        r = eigenrays(water, z0, yw, zs)
+        p = np.abs(r.ray_parameter_s_m)
+        sin_s = p * cs
+        cos_s = np.sqrt(np.maximum(1.0 - sin_s * sin_s, 1e-300))
+        miss = yw + b * sin_s / cos_s - rho
+        if not np.any(np.abs(miss) > tol):          # NaN (no water ray) counts as done
+            break
+        # d(miss)/d(yw) = 1 + b c_s / cos^3 · dp/dX, dX/dp = rho_wf c_end / cos_end^2
+        dxdp = r.wavefront_radius_m * c_end / np.maximum(r.launch_cos ** 2, 1e-300)
+        slope = 1.0 + b * cs / cos_s ** 3 / np.maximum(dxdp, 1e-300)
+        yw = np.where(np.isfinite(miss), np.clip(yw - miss / slope, 0.0, rho), yw)
+    else:
+        bad = np.abs(miss) > tol
+        log.warning("%d rays to points below the seabed did not converge; they are dropped", int(bad.sum()))
+        r = dataclasses.replace(r, time_s=np.where(bad, np.nan, r.time_s))
+    time = r.time_s + np.hypot(b, rho - yw) / cs
+    out = {"time_s": time}
+    if directions:
+        h = d[..., :2] / np.maximum(rho, 1e-300)[..., None]
+        end_dir = np.empty(rho.shape + (3,))
+        pos_dir = np.empty(rho.shape + (3,))
+        end_dir[..., :2] = h * np.abs(r.launch_sin)[..., None]
+        end_dir[..., 2] = r.launch_cos
+        pos_dir[..., :2] = h * sin_s[..., None]
+        pos_dir[..., 2] = np.where(np.isfinite(time), cos_s, np.nan)
+        out.update(p=p, end_dir=end_dir, pos_dir=pos_dir)
+    return out
+
+
+def _ray_offset_time(profile: SoundSpeedProfile, p: float, z0: float, z1: float) -> tuple[float, float]:
+    """Horizontal offset (m) and time (s) of a downgoing ray of ray parameter
+    ``p >= 0`` from depth ``z0`` to ``z1 >= z0``; NaN where it turns before.
+
+    Per piece of constant gradient ``g`` from ``a`` to ``b`` (``h = b - a``):
+    ``X = p h (c_a + c_b) / (cos_a + cos_b)`` and
+    ``T = ln(c_b (1 + cos_a) / (c_a (1 + cos_b))) / g`` (``h / (c cos)`` when
+    ``g h`` is negligible).
+    """
+    cuts = [z0] + [float(z) for z in np.unique(profile.depths_m) if z0 < z < z1] + [z1]
+    x = t = 0.0
+    for a, b in zip(cuts, cuts[1:]):
+        h = b - a
+        if h <= 0:
+            continue
+        ca, cb = float(profile.speed(a, side="below")), float(profile.speed(b, side="above"))
+        sa, sb = p * ca, p * cb
+        if sa >= 1.0 or sb >= 1.0:
+            return math.nan, math.nan
+        cos_a, cos_b = math.sqrt(1.0 - sa * sa), math.sqrt(1.0 - sb * sb)
+        x += p * h * (ca + cb) / (cos_a + cos_b)
+        g = (cb - ca) / h
+        if abs(g * h) <= 1e-9 * ca:
+            t += 2.0 * h / (ca * cos_a + cb * cos_b)
+        else:
+            t += math.log(cb * (1.0 + cos_a) / (ca * (1.0 + cos_b))) / g
+    return x, t
+
+
+def _turning_depth(profile: SoundSpeedProfile, p: float, z0: float) -> float:
+    """Depth (m) below ``z0`` where a ray of ray parameter ``p`` turns
+    (``p c = 1``), ``inf`` if it never does."""
+    if p <= 0:
+        return math.inf
+    cuts = [z0] + [float(z) for z in np.unique(profile.depths_m) if z > z0]
+    for a, b in zip(cuts, cuts[1:] + [math.inf]):
+        ca = float(profile.speed(a, side="below"))
+        if p * ca >= 1.0:
+            return a
+        if math.isfinite(b):
+            cb = float(profile.speed(b, side="above"))
+            if p * cb >= 1.0:
+                return a + (1.0 / p - ca) * (b - a) / (cb - ca)
+    return math.inf
+
+
+def _ray_point(profile: SoundSpeedProfile, z0: float, sin0: float, time_s: float) -> tuple[float, float]:
+    """Where the ray leaving depth ``z0`` at ``sin0`` from nadir (signed,
+    downgoing) is after ``time_s``: ``(y offset, z)`` (m), NaN if it turns
+    first."""
+    p = abs(sin0) / float(profile.speed(z0))
+    z_hi = z0 + float(np.max(profile.speeds_m_s)) * time_s * 1.000001
+    z_turn = _turning_depth(profile, p, z0)
+    if z_turn < z_hi:
+        z_hi = z0 + (z_turn - z0) * (1.0 - 1e-12)
+
+    def late(z):
+        return _ray_offset_time(profile, p, z0, z)[1] - time_s
+
+    if not late(z_hi) >= 0:
+        return math.nan, math.nan
+    z = scipy.optimize.brentq(late, z0, z_hi, xtol=1e-10, rtol=1e-14, maxiter=200)
+    return math.copysign(_ray_offset_time(profile, p, z0, z)[0], sin0), z
+
+
+def _unfold(medium: SoundSpeedProfile, turns: list[float]) -> tuple[SoundSpeedProfile, float, float]:
+    """A ray reflected at horizontal planes, unfolded into a downgoing one.
+
+    The ray leaves downward, reflects at depth ``turns[0]`` (a bottom, from
+    above), then ``turns[1]`` (a top, from below), and so on alternately.
+    Returns the profile along the unfolded depth ``s`` (``s = z`` before the
+    first turn), the unfolded depth ``S`` of the last turn and its depth
+    ``R``: after an odd number of turns a point at depth ``z`` on the last
+    (upgoing) leg is at ``s = S + (R - z)``.
+    """
+    d, c = medium.depths_m, medium.speeds_m_s
+    pts: list[tuple[float, float]] = [(float(z), float(v)) for z, v in zip(d, c) if z < turns[0]]
+    pts.append((turns[0], float(medium.speed(turns[0], side="above"))))
+    s_turn, z_turn = turns[0], turns[0]
+    legs = list(turns[1:]) + [None]
+    for i, nxt in enumerate(legs):
+        up = i % 2 == 0                         # after a bottom the ray goes up
+        if up:
+            inside = [(z, v) for z, v in zip(d[::-1], c[::-1]) if z < z_turn and (nxt is None or z > nxt)]
+            pts.extend((s_turn + (z_turn - z), float(v)) for z, v in inside)
+        else:
+            inside = [(z, v) for z, v in zip(d, c) if z > z_turn and (nxt is None or z < nxt)]
+            pts.extend((s_turn + (z - z_turn), float(v)) for z, v in inside)
+        if nxt is None:
+            break
+        s_next = s_turn + abs(z_turn - nxt)
+        pts.append((s_next, float(medium.speed(nxt, side="below" if up else "above"))))
+        s_turn, z_turn = s_next, nxt
+    uniq = [pts[0]]
+    for q in pts[1:]:
+        if q != uniq[-1]:
+            uniq.append(q)
+    s_arr, c_arr = (np.array(v) for v in zip(*uniq))
+    return SoundSpeedProfile(s_arr, c_arr), float(s_turn), float(z_turn)
+
+
+# ---------------------------------------------------------------------------
 # Fractional-delay tables
 # ---------------------------------------------------------------------------
 @functools.lru_cache(maxsize=8)
@@ -996,7 +1296,11 @@ class _Echoes:
     ``rx_tilt``: for refracted echoes, the refracted minus the straight ray
     direction at the array (``(S, 3)``): element ``n`` gets the extra delay
     ``-rx_tilt · (e_n - o) / c`` (the first-order change of the refraction
-    delay across the array).
+    delay across the array); ``times_s``: with a sound-speed profile, the
+    ray-traced two-way time of every scatterer-channel pair ``(S, C)`` (s),
+    in place of the straight-ray delay from ``src_leg``, ``extra_s`` and
+    ``rx_tilt`` (the spreading is still ``spread`` times the straight receive
+    leg).
     """
 
     label: str
@@ -1009,6 +1313,7 @@ class _Echoes:
     b_s: np.ndarray | None = None
     response: typing.Callable | None = None
     rx_tilt: np.ndarray | None = None
+    times_s: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.amp)
@@ -1017,7 +1322,8 @@ class _Echoes:
         return dataclasses.replace(
             self, pos=self.pos[mask], amp=self.amp[mask], src_leg=self.src_leg[mask], spread=self.spread[mask],
             extra_s=self.extra_s[mask], u=self.u[mask], b_s=None if self.b_s is None else self.b_s[mask],
-            rx_tilt=None if self.rx_tilt is None else self.rx_tilt[mask])
+            rx_tilt=None if self.rx_tilt is None else self.rx_tilt[mask],
+            times_s=None if self.times_s is None else self.times_s[mask])
 
 
 @dataclass(frozen=True)
@@ -1097,6 +1403,7 @@ class Simulator:
         self.indices = self._indices(pings)
         sc, so = self.scene, self.scene.sonar
         self.c = sc.sound_speed_m_s
+        self._setup_profile()
         self.fs = so.sample_rate_hz
         self.fc = so.centre_frequency_hz
         self.replica = so.replica()
@@ -1110,7 +1417,7 @@ class Simulator:
         self._envelope_u, self._envelope = self._beam_envelope()
         self.max_range_m = sc.record.max_range_m or self._auto_max_range()
         self.t0 = sc.record.start_s
-        t_end = 2 * self.max_range_m / self.c + so.pulse_duration_s
+        t_end = 2 * self.max_range_m / self.c_min + so.pulse_duration_s
         require(t_end > self.t0, OptionError,
                 f"record.start_s {self.t0:g} s is after the record end {t_end:g} s (max_range_m {self.max_range_m:g} m)")
         self.n_samples = int(math.ceil((t_end - self.t0) * self.fs))
@@ -1124,6 +1431,33 @@ class Simulator:
         self.noise_std = self._noise_std()
 
     # -- set-up ----------------------------------------------------------
+    def _setup_profile(self) -> None:
+        """The scene's sound-speed profile (``[water]``), if any.
+
+        ``svp``: the water profile (``None``: isospeed); ``svp_sediment``: it
+        cut at a flat seabed with the sediment's speed below (``None`` without
+        a seabed or with a sloped one); ``c``: the speed at the transducers;
+        ``c_min``: the slowest speed of the profile (record length, pipeline
+        point spacing); ``c_seabed``: the water speed at the seabed under the
+        first ping (the sediment's speed is ``sound_speed_ratio`` times it).
+        Isospeed: all ``sound_speed_m_s``.
+        """
+        sc = self.scene
+        self.svp = self.svp_sediment = None
+        self.c_min = self.c_seabed = self.c
+        if sc.water is None:
+            return
+        self.svp = sc.water.profile()
+        self.c = float(self.svp.speed(0.0))
+        self.c_min = float(np.min(self.svp.speeds_m_s))
+        sb = sc.seabed
+        if sb is not None:
+            z_sb = sb.depth_m - sc.sonar.draft_m
+            self.c_seabed = float(self.svp.speed(z_sb, side="above"))
+            if sb.slope_along_deg == 0 and sb.slope_across_deg == 0:
+                self.svp_sediment = SoundSpeedProfile.with_sediment(self.svp, z_sb,
+                                                                    sb.sound_speed_ratio * self.c_seabed)
+
     def _indices(self, pings) -> np.ndarray:
         if pings is None:
             idx = np.arange(self.scene.survey.pings)
@@ -1227,7 +1561,7 @@ class Simulator:
         from .avo import backscatter_strength_db
 
         table = np.stack([backscatter_strength_db(self.PROVINCE_GRAZING_DEG, self.fc, mz=p.mz,
-                                                  sound_speed_water_m_s=self.c) for p in sb.province])
+                                                  sound_speed_water_m_s=self.c_seabed) for p in sb.province])
         return {"start": np.array([p.from_along_track_m for p in sb.province]),
                 "mz": np.array([p.mz for p in sb.province]), "strength_db": table}
 
@@ -1364,7 +1698,7 @@ class Simulator:
             x_ext = self.max_range_m * self.u_cut / math.sqrt(1 - self.u_cut ** 2)
             a0, a1 = self._arc_extent(t, -x_ext - 10.0, track + x_ext + 10.0)
             _, _, d = self._arc(t, np.linspace(a0, a1, 1025))
-            wl_min = self.c / (1.05 * self.scene.sonar.pulse_f1_hz)
+            wl_min = self.c_min / (1.05 * self.scene.sonar.pulse_f1_hz)
             max_cos = min(1.0, self.u_cut + float(np.max(np.abs(np.sin(d)))))
             spacing = wl_min / (4 * max_cos)
         x_lo, x_hi = self._x_window
@@ -1426,6 +1760,100 @@ class Simulator:
         return {"extra_s": extra, "b_s": self.alpha_np * path, "transmission": 1 - v * v,
                 "grazing_sediment_rad": legs[0][0]["grazing_sediment_rad"], "path_m": path, "rx_tilt": tilt}
 
+    # -- rays through the profile ---------------------------------------------------
+    def _legs(self, ends: np.ndarray, pos: np.ndarray, *, buried: bool = False, seabed_z=None,
+              directions: bool = True) -> dict:
+        """Ray-traced legs between ``ends`` ``(P, 3)`` and scatterers ``pos``
+        ``(S, 3)`` (:func:`_ray_legs`): through the water profile, or for
+        ``buried`` scatterers (below the seabed at depths ``seabed_z`` ``(S,)``)
+        through the profile with the sediment below a flat seabed, or past a
+        locally flat seabed at ``seabed_z`` when it is sloped
+        (:func:`_seabed_ray_legs`)."""
+        if not buried:
+            return _ray_legs(self.svp, ends, pos, directions=directions)
+        if self.svp_sediment is not None:
+            return _ray_legs(self.svp_sediment, ends, pos, directions=directions)
+        zs = np.asarray(seabed_z, dtype=np.float64)
+        c_s = self.scene.seabed.sound_speed_ratio * self.svp.speed(zs, side="above")
+        return _seabed_ray_legs(self.svp, ends, pos, zs, c_s, directions=directions)
+
+    def _source_rays(self, g: PingGeometry, pos: np.ndarray, **kw) -> dict:
+        """Ray-traced source legs of scatterers ``pos`` ``(S, 3)``: ``time_s``,
+        ``p``, ``launch`` (direction leaving the source), ``arrival`` (at the
+        scatterer) and ``u``, the launch direction's cosine on the transmit
+        column (the transmit beam sees the ray's launch direction)."""
+        r = {k: v[0] for k, v in self._legs(g.source[None, :], pos, **kw).items()}
+        r["launch"], r["arrival"] = r.pop("end_dir"), r.pop("pos_dir")
+        r["u"] = r["launch"] @ g.column
+        return r
+
+    def _buried_rays(self, g: PingGeometry, pos: np.ndarray, seabed_z: np.ndarray, src: dict) -> dict:
+        """In-sediment path, attenuation and transmission of buried scatterers
+        from their ray-traced legs (the source's and the array centre's), as
+        :meth:`_buried` does with Snell rays from straight water paths."""
+        sb = self.scene.seabed
+        b = np.maximum(pos[:, 2] - seabed_z, 0.0)
+        cos_c = self._legs(g.centre[None, :], pos, buried=True, seabed_z=seabed_z)["pos_dir"][0, :, 2]
+        cos_s = src["arrival"][:, 2]
+        path = b / cos_s + b / cos_c
+        sin_w = np.clip(src["p"] * self.svp.speed(seabed_z, side="above"), 0.0, 1.0)
+        v = reflection_coefficient(np.arccos(sin_w), sb.density_ratio, sb.sound_speed_ratio)
+        return {"b_s": self.alpha_np * path, "transmission": 1 - v * v, "path_m": path,
+                "grazing_sediment_rad": np.arcsin(np.clip(cos_s, 0.0, 1.0))}
+
+    def _traced_echoes(self, label: str, g: PingGeometry, pos: np.ndarray, amp: np.ndarray, src: dict, *,
+                       buried: bool = False, seabed_z=None, b_s=None, response=None) -> _Echoes:
+        """An echo set whose two-way times are ray traced: the source leg
+        ``src`` (:meth:`_source_rays`) plus each element's leg.  Scatterers
+        that a direct ray does not reach (from the source or any element) are
+        dropped.  Spreading stays ``1 / (|r - s| |r - e_n|)`` on the straight
+        distances."""
+        rx = self._legs(g.elements, pos, buried=buried, seabed_z=seabed_z, directions=False)["time_s"]
+        times = src["time_s"][:, None] + rx.T
+        ok = np.all(np.isfinite(times), axis=1) & np.isfinite(amp) & np.isfinite(src["u"])
+        if b_s is not None:
+            ok &= np.isfinite(b_s)
+        if not ok.all():
+            log.info("%s: %d of %d scatterers have no direct ray to the source or an element; dropped",
+                     label, int((~ok).sum()), ok.size)
+        dist = np.linalg.norm(pos - g.source, axis=1)
+        u = src["u"]
+        return _Echoes(label=label, pos=pos[ok], amp=(amp * self.taper(u))[ok], src_leg=dist[ok], spread=dist[ok],
+                       extra_s=np.zeros(int(ok.sum())), u=u[ok], b_s=None if b_s is None else b_s[ok],
+                       response=response, times_s=times[ok])
+
+    def _specular_times(self, g: PingGeometry, names: list[str], img: np.ndarray) -> np.ndarray:
+        """``(1, C)`` two-way times of an image-source path through the profile.
+
+        ``names`` are the reflectors in turn (``"seabed"``, ``"surface"``,
+        ``"deep"``: the sub-bottom).  Flat seabed: the exact eigenray of the
+        unfolded path (:func:`_unfold`) from the source to each element.  A
+        sloped seabed: the straight image-source time at the transducers'
+        speed plus the profile's correction of the same path with flat
+        reflectors at the nadir depths (vertical, source to array centre).
+        """
+        sc, sb = self.scene, self.scene.seabed
+        z_sb = float(self.seabed_z(g.along_m, 0.0))
+        d = sc.subbottom.depth_below_seabed_m if sc.subbottom is not None else 0.0
+        depth = {"seabed": z_sb, "surface": -sc.sonar.draft_m, "deep": z_sb + d}
+
+        def unfolded_times(medium, turns, ends):
+            unf, s_last, z_last = _unfold(medium, turns)
+            e = np.array(ends, dtype=np.float64)
+            e[:, 2] = s_last + (z_last - e[:, 2])
+            return _ray_legs(unf, g.source[None, :], e, directions=False)["time_s"][0]
+
+        turns = [depth[n] for n in names]
+        if self.svp_sediment is not None:
+            return unfolded_times(self.svp_sediment, turns, g.elements)[None, :]
+        medium = SoundSpeedProfile.with_sediment(self.svp, z_sb, sb.sound_speed_ratio
+                                                 * float(self.svp.speed(z_sb, side="above")))
+        t_prof = unfolded_times(medium, turns, g.centre[None, :])[0]
+        equiv = {**depth, "deep": z_sb + d / sb.sound_speed_ratio}    # the isospeed model's equivalent plane
+        t_iso = unfolded_times(SoundSpeedProfile.constant(self.c), [equiv[n] for n in names], g.centre[None, :])[0]
+        straight = np.linalg.norm(g.elements - img, axis=1) / self.c
+        return (straight + (t_prof - t_iso))[None, :]
+
     # -- echo sets ---------------------------------------------------------------
     def echoes(self, g: PingGeometry) -> list[_Echoes]:
         """Every echo set of ping ``g``: targets, specular paths, random fields."""
@@ -1435,7 +1863,7 @@ class Simulator:
             if e is not None and len(e):
                 sets.append(e)
         if self.scene.seabed is not None:
-            sets.extend(self._specular_echoes(g))
+            sets.extend(e for e in self._specular_echoes(g) if len(e))
         for f in self._fields:
             e = self._field_echo(g, f)
             if len(e):
@@ -1451,6 +1879,18 @@ class Simulator:
         x, y, z = self._target_world(t)
         pos = np.array([[x - g.along_m, y, z]])
         amp = np.array([t.amplitude_m])
+        if self.svp is not None:
+            buried = t.burial_m is not None
+            zsb = np.array([z - t.burial_m]) if buried else None
+            src = self._source_rays(g, pos, buried=buried, seabed_z=zsb)
+            b_s = None
+            if buried:
+                bur = self._buried_rays(g, pos, zsb, src)
+                amp, b_s = amp * bur["transmission"], bur["b_s"]
+            e = self._traced_echoes(t.name, g, pos, amp, src, buried=buried, seabed_z=zsb, b_s=b_s)
+            if not len(e):
+                log.warning("target '%s': no direct ray reaches it in ping %d; left out", t.name, g.index)
+            return e
         if t.burial_m is None:
             return self._scatterers(t.name, g, pos, amp)
         bur = self._buried(g, pos, np.array([t.burial_m]), np.array([z - t.burial_m]))
@@ -1463,6 +1903,8 @@ class Simulator:
         if hi <= lo:
             return None
         pos = np.stack([pts["x"][lo:hi] - g.along_m, pts["y"][lo:hi], pts["z"][lo:hi]], axis=1)
+        if self.svp is not None:
+            return self._line_echo_traced(g, t, pts, pos)
         _, u = self._direction_cosine(g, pos)
         keep = np.abs(u) < self.u_cut
         pos = pos[keep]
@@ -1476,6 +1918,25 @@ class Simulator:
             kw = {"extra_s": bur["extra_s"], "b_s": bur["b_s"], "rx_tilt": bur["rx_tilt"]}
         return self._scatterers(t.name, g, pos, amp, response=functools.partial(t.response, sound_speed_m_s=medium_c),
                                 **kw)
+
+    def _line_echo_traced(self, g: PingGeometry, t: LineTarget, pts: dict, pos: np.ndarray) -> _Echoes:
+        """:meth:`_line_echo` through the sound-speed profile."""
+        buried = t.burial_m is not None
+        zsb = pos[:, 2] - t.burial_m if buried else None
+        src = self._source_rays(g, pos, buried=buried, seabed_z=zsb)
+        keep = np.abs(src["u"]) < self.u_cut             # NaN: no ray, out
+        pos, src = pos[keep], {k: v[keep] for k, v in src.items()}
+        zsb = zsb[keep] if buried else None
+        amp = np.full(len(pos), t.reflectivity * pts["spacing"])
+        b_s = None
+        if buried:
+            medium_c = self.c_seabed * self.scene.seabed.sound_speed_ratio
+            bur = self._buried_rays(g, pos, zsb, src)
+            amp, b_s = amp * bur["transmission"], bur["b_s"]
+        else:
+            medium_c = float(self.svp.speed(np.median(pos[:, 2]))) if len(pos) else self.c
+        return self._traced_echoes(t.name, g, pos, amp, src, buried=buried, seabed_z=zsb, b_s=b_s,
+                                   response=functools.partial(t.response, sound_speed_m_s=medium_c))
 
     def _specular_echoes(self, g: PingGeometry) -> list[_Echoes]:
         """Image sources: seabed, sub-bottom, first multiple and its doublet.
@@ -1491,6 +1952,7 @@ class Simulator:
         if sb.specular_model == "forward":
             return self._forward_specular_echoes(g, seabed, surface)
         v1 = float(reflection_coefficient(np.pi / 2, sb.density_ratio, sb.sound_speed_ratio))
+        names = {id(seabed): "seabed", id(surface): "surface"}
         paths = []  # (label, planes, amplitude, two-way sediment path in m)
         if sb.specular:
             paths.append(("seabed", [seabed], v1, 0.0))
@@ -1503,6 +1965,7 @@ class Simulator:
             v2 = (z2 - z1) / (z2 + z1) * (1 - v1 * v1)
             d = sub.depth_below_seabed_m
             deep = seabed.shifted(d * seabed.n[2] / c_s)  # vertical thickness d, normal thickness d cos(slope)
+            names[id(deep)] = "deep"
             if sub.specular:
                 paths.append(("subbottom", [deep], v2, 2 * d))
             if sb.multiple and sub.specular:
@@ -1511,13 +1974,15 @@ class Simulator:
         sets = []
         for label, planes, amp, path in paths:
             b = np.array([self.alpha_np * path]) if path > 0 else None
-            sets.append(self._image_source(g, label, planes, amp, b_s=b))
+            sets.append(self._image_source(g, label, planes, amp, b_s=b, names=[names[id(p)] for p in planes]))
         return sets
 
     def _image_source(self, g: PingGeometry, label: str, planes: list, amp: float, *, b_s=None,
-                      response=None) -> _Echoes:
+                      response=None, names=None) -> _Echoes:
         """The echo of the source mirrored in ``planes`` in turn (amplitude
-        ``amp`` times ``response(f)``, spreading along the unfolded path)."""
+        ``amp`` times ``response(f)``, spreading along the unfolded path).
+        With a sound-speed profile the times follow it
+        (:meth:`_specular_times`; ``names`` name the planes)."""
         img = g.source.copy()
         for p in planes:
             img = p.mirror(img)
@@ -1526,8 +1991,15 @@ class Simulator:
             rx = p.mirror(rx)
         ray = rx - g.source
         u = float(ray @ g.column / np.linalg.norm(ray))
-        return _Echoes(label=label, pos=img[None, :], amp=np.array([amp]), src_leg=np.zeros(1), spread=np.ones(1),
-                       extra_s=np.zeros(1), u=np.array([u]), b_s=b_s, response=response)
+        e = _Echoes(label=label, pos=img[None, :], amp=np.array([amp]), src_leg=np.zeros(1), spread=np.ones(1),
+                    extra_s=np.zeros(1), u=np.array([u]), b_s=b_s, response=response)
+        if self.svp is None or names is None:
+            return e
+        e.times_s = self._specular_times(g, names, img)
+        if not np.all(np.isfinite(e.times_s)):
+            log.warning("%s echo: no direct unfolded ray to some element in ping %d; left out", label, g.index)
+            return e.subset(np.zeros(1, dtype=bool))
+        return e
 
     def forward_seabed(self, water_m: float = 1.0):
         """The scene's seabed as a :class:`clbeam.forward.Seabed`: water
@@ -1539,15 +2011,16 @@ class Simulator:
         sb, sub = self.scene.seabed, self.scene.subbottom
         rho_w = 1000.0
         k_p = sb.attenuation_db_per_m / (sb.attenuation_ref_hz / 1000.0)  # dB/m/kHz, linear law
-        sediment = dict(sound_speed_m_s=sb.sound_speed_ratio * self.c, density_kg_m3=sb.density_ratio * rho_w,
+        c_w = self.c_seabed  # the water's speed at the seabed (isospeed: sound_speed_m_s)
+        sediment = dict(sound_speed_m_s=sb.sound_speed_ratio * c_w, density_kg_m3=sb.density_ratio * rho_w,
                         attenuation=PowerLawAttenuation(k_p, 1.0), top=Interface(roughness_m=sb.roughness_m),
                         name="sediment")
-        layers = [water_column(water_m, sound_speed_m_s=self.c, density_kg_m3=rho_w)]
+        layers = [water_column(water_m, sound_speed_m_s=c_w, density_kg_m3=rho_w)]
         if sub is None:
             layers.append(Layer(math.inf, **sediment))
         else:
             layers.append(Layer(sub.depth_below_seabed_m, **sediment))
-            layers.append(Layer(math.inf, sub.sound_speed_ratio * self.c, sub.density_ratio * rho_w,
+            layers.append(Layer(math.inf, sub.sound_speed_ratio * c_w, sub.density_ratio * rho_w,
                                 top=Interface(roughness_m=sub.roughness_m), name="subbottom"))
         return LayeredSeabed(tuple(layers), name=self.scene.name)
 
@@ -1578,6 +2051,7 @@ class Simulator:
                 return out
             return response
 
+        names = {id(seabed): "seabed", id(surface): "surface"}
         paths = []  # (label, planes, rows of the response multiplied, sign)
         if sb.specular:
             paths.append(("seabed", [seabed], (0,), 1.0))
@@ -1585,12 +2059,14 @@ class Simulator:
             paths.append(("multiple", [seabed, surface, seabed], (0, 0), -1.0))
         if sub is not None:
             deep = seabed.shifted(sub.depth_below_seabed_m * seabed.n[2] / sb.sound_speed_ratio)
+            names[id(deep)] = "deep"
             if sub.specular:
                 paths.append(("subbottom", [deep], (1,), 1.0))
             if sb.multiple and sub.specular:
                 paths.append(("multiple-doublet", [seabed, surface, deep], (0, 1), -2.0))
                 paths.append(("multiple-subbottom", [deep, surface, deep], (1, 1), -1.0))
-        return [self._image_source(g, label, planes, 1.0, response=factor(rows, sign))
+        return [self._image_source(g, label, planes, 1.0, response=factor(rows, sign),
+                                   names=[names[id(p)] for p in planes])
                 for label, planes, rows, sign in paths]
 
     def _field_echo(self, g: PingGeometry, f: dict) -> _Echoes:
@@ -1600,6 +2076,8 @@ class Simulator:
         x_t, y = f["x"][lo:hi], f["y"][lo:hi]
         z_sb = self.seabed_z(x_t, y)
         pos = np.stack([x_t - g.along_m, y, z_sb + f["depth"] + f["zeta"][lo:hi]], axis=1)
+        if self.svp is not None:
+            return self._field_echo_traced(g, f, lo, hi, x_t, pos, z_sb)
         dist, u = self._direction_cosine(g, pos)
         weight = self.envelope(u)
         keep = (f["q"][lo:hi] < weight) & (np.abs(u) < self.u_cut) & (dist < self.max_range_m + 10)
@@ -1629,6 +2107,44 @@ class Simulator:
             cut = e.b_s * self.fc * DB_PER_NEPER <= self.scene.model.attenuation_cut_db
             e = e.subset(cut)
         return e
+
+    def _field_echo_traced(self, g: PingGeometry, f: dict, lo: int, hi: int, x_t: np.ndarray, pos: np.ndarray,
+                           z_sb: np.ndarray) -> _Echoes:
+        """:meth:`_field_echo` through the sound-speed profile: the beam and
+        the importance weight see the ray's launch direction, the grazing
+        angle is the ray's at the scatterer (in the sediment below the
+        seabed), the times are ray traced."""
+        buried = f["depth"] > 0
+        src = self._source_rays(g, pos, buried=buried, seabed_z=z_sb if buried else None)
+        dist = np.linalg.norm(pos - g.source, axis=1)
+        u = src["u"]
+        weight = self.envelope(u)
+        keep = (f["q"][lo:hi] < weight) & (np.abs(u) < self.u_cut) & (dist < self.max_range_m + 10)
+        pos, weight, z_sb = pos[keep], weight[keep], z_sb[keep]
+        src = {k: v[keep] for k, v in src.items()}
+        g_amp = f["g"][lo:hi][keep]
+        density = f["n"][lo:hi][keep] * weight
+        sc: Scattering = f["scattering"]
+        b_s = None
+        trans = 1.0
+        if buried:
+            bur = self._buried_rays(g, pos, z_sb, src)
+            sin_graz = np.sin(bur["grazing_sediment_rad"])
+            trans, b_s = bur["transmission"], bur["b_s"]
+        else:
+            sin_graz = np.abs(src["arrival"] @ self._seabed_plane(g).n)
+        if f["layer"] == 1 and self._provinces is not None:
+            sigma = 10 ** (self.province_strength_db(x_t[keep], np.arcsin(np.clip(sin_graz, 0.0, 1.0))) / 10)
+        else:
+            sigma = 10 ** (sc.strength_db / 10) * sin_graz ** sc.grazing_exponent
+        amp = g_amp * np.sqrt(sigma / density) * trans
+        if b_s is not None:
+            # before the element legs are traced: they are the cost
+            cut = ~(b_s * self.fc * DB_PER_NEPER > self.scene.model.attenuation_cut_db)
+            pos, amp, b_s, z_sb = pos[cut], amp[cut], b_s[cut], z_sb[cut]
+            src = {k: v[cut] for k, v in src.items()}
+        return self._traced_echoes(f"layer{f['layer']}", g, pos, amp, src, buried=buried,
+                                   seabed_z=z_sb if buried else None, b_s=b_s)
 
     # -- rendering ---------------------------------------------------------------
     def ping(self, index: int) -> np.ndarray:
@@ -1674,9 +2190,15 @@ class Simulator:
         eo = g.elements - o
         ee = np.einsum("ij,ij->i", eo, eo)
         rel0 = e.pos - o
-        t_centre = e.src_leg + np.sqrt(np.einsum("ij,ij->i", rel0, rel0)) + e.extra_s * self.c
-        order = np.argsort(t_centre, kind="stable")
-        t_sorted = t_centre[order] * (self.fs / self.c)
+        if e.times_s is None:
+            t_centre = e.src_leg + np.sqrt(np.einsum("ij,ij->i", rel0, rel0)) + e.extra_s * self.c
+            order = np.argsort(t_centre, kind="stable")
+            t_sorted = t_centre[order] * (self.fs / self.c)
+        else:
+            t_traced = (e.times_s - self.t0) * self.fs           # record samples (S, C)
+            t_mean = t_traced.mean(axis=1)
+            order = np.argsort(t_mean, kind="stable")
+            t_sorted = t_mean[order]
         ws_all = self.scene.sonar.tx_length_m * np.abs(e.u) / self.c * self.fs
         n_ch = len(eo)
         step = max(1, CHUNK_PAIRS // n_ch)
@@ -1694,10 +2216,13 @@ class Simulator:
             d2 += np.einsum("ij,ij->i", rel, rel)[:, None]
             d2 += ee[None, :]
             d = np.sqrt(d2, out=d2)
-            t = (d + e.src_leg[rows, None]) * fs_c
-            t += ((e.extra_s[rows] - self.t0) * self.fs)[:, None]
-            if e.rx_tilt is not None:
-                t -= e.rx_tilt[rows] @ (eo.T * (self.fs / self.c))
+            if e.times_s is not None:
+                t = t_traced[rows]
+            else:
+                t = (d + e.src_leg[rows, None]) * fs_c
+                t += ((e.extra_s[rows] - self.t0) * self.fs)[:, None]
+                if e.rx_tilt is not None:
+                    t -= e.rx_tilt[rows] @ (eo.T * (self.fs / self.c))
             w = e.amp[rows, None] / (e.spread[rows, None] * d)
             yield rows, t, w, ws_all[rows]
 
@@ -1721,12 +2246,17 @@ class Simulator:
     def _deposit_local(self, g: PingGeometry, e: _Echoes):
         """Deposit a filtered set into its own accumulator over its time support;
         return it and the attenuation ``b`` (s) of each filter block."""
-        rel = e.pos - g.centre
-        t_c = ((e.src_leg + np.sqrt(np.einsum("ij,ij->i", rel, rel))) / self.c + e.extra_s - self.t0) * self.fs
         ws = self.scene.sonar.tx_length_m * np.abs(e.u) / self.c * self.fs
-        spread = float(np.max(np.linalg.norm(g.elements - g.centre, axis=1))) / self.c * self.fs + 2
-        lo = int(math.floor(np.min(t_c - ws / 2) - spread)) - self.tables[0] - 2
-        hi = int(math.ceil(np.max(t_c + ws / 2) + spread)) + self.tables[0] + 2
+        if e.times_s is None:
+            rel = e.pos - g.centre
+            t_c = ((e.src_leg + np.sqrt(np.einsum("ij,ij->i", rel, rel))) / self.c + e.extra_s - self.t0) * self.fs
+            t_first = t_last = t_c
+            spread = float(np.max(np.linalg.norm(g.elements - g.centre, axis=1))) / self.c * self.fs + 2
+        else:
+            t_ch = (e.times_s - self.t0) * self.fs
+            t_c, t_first, t_last, spread = t_ch.mean(axis=1), t_ch.min(axis=1), t_ch.max(axis=1), 2.0
+        lo = int(math.floor(np.min(t_first - ws / 2) - spread)) - self.tables[0] - 2
+        hi = int(math.ceil(np.max(t_last + ws / 2) + spread)) + self.tables[0] + 2
         lo = max(lo, -self.n_pulse - 8)
         hi = min(hi, self.n_samples + 8)
         if hi <= lo:
@@ -1821,7 +2351,9 @@ class Simulator:
         where they are; ``z`` is below the transducers' mean depth (heave is
         in the source and element positions, not in the frame).
         ``image_y, image_z``: where the imager should show the echo, from the
-        point of the target nearest the source (:meth:`image_position`);
+        point of the target nearest the source (:meth:`image_position`; with
+        a sound-speed profile, where an imager using that profile shows it,
+        :meth:`_traced_truth`);
         ``u``: that point's direction cosine on the transmit column (the
         beam's −3 dB half-width is about 0.02 at 9 kHz, 0.09 at 2 kHz).
         """
@@ -1837,19 +2369,55 @@ class Simulator:
                 out["x"][k], out["y"][k], out["z"][k], out["angle"][k] = 0.0, y, z, ang
                 rel = np.stack([pts["x"] - g.along_m, pts["y"], pts["z"]], axis=1) - g.source
                 nearest = rel[np.argmin(np.einsum("ij,ij->i", rel, rel))] + g.source
-            refraction = {}
-            if t.burial_m is not None:
-                # the apparent position: the refracted echo arrives later
-                # and from the refracted ray's direction at the array
-                bur = self._buried(g, nearest[None, :], np.array([t.burial_m]),
-                                   np.array([nearest[2] - t.burial_m]))
-                refraction = {"extra_m": 0.5 * self.c * float(bur["extra_s"][0]), "rx_tilt": bur["rx_tilt"][0]}
-            out["image_y"][k], out["image_z"][k] = self.image_position(g, nearest, **refraction)
-            out["u"][k] = float(self._direction_cosine(g, nearest[None, :])[1][0])
+            if self.svp is not None:
+                out["image_y"][k], out["image_z"][k], out["u"][k] = self._traced_truth(g, t, nearest)
+            else:
+                refraction = {}
+                if t.burial_m is not None:
+                    # the apparent position: the refracted echo arrives later
+                    # and from the refracted ray's direction at the array
+                    bur = self._buried(g, nearest[None, :], np.array([t.burial_m]),
+                                       np.array([nearest[2] - t.burial_m]))
+                    refraction = {"extra_m": 0.5 * self.c * float(bur["extra_s"][0]), "rx_tilt": bur["rx_tilt"][0]}
+                out["image_y"][k], out["image_z"][k] = self.image_position(g, nearest, **refraction)
+                out["u"][k] = float(self._direction_cosine(g, nearest[None, :])[1][0])
             if self.scene.seabed is not None and np.isfinite(out["y"][k]):
                 out["seabed_z"][k] = float(self.seabed_z(g.along_m + out["x"][k], out["y"][k]))
         seabed = float(self.seabed_z(g.along_m, 0.0)) if self.scene.seabed is not None else np.nan
         return {"target": out, "seabed_z": seabed}
+
+    def _traced_truth(self, g: PingGeometry, t, nearest: np.ndarray) -> tuple[float, float, float]:
+        """``(image_y, image_z, u)`` of a target's nearest point with a profile.
+
+        Where a 2-D imager that traces rays through the same profile (and
+        the same sediment below the seabed) shows the echo: the point of the
+        plane ``x = 0`` at the echo's travel time from the source along the
+        ray whose launch direction has the echo's direction cosine on the
+        (rolled) receive-array axis (:meth:`image_position`'s range and cone
+        angle, ray traced).  A scatterer in the plane is shown where it is.
+        ``u`` is the launch direction's cosine on the transmit column.
+        """
+        buried = t.burial_m is not None
+        zsb = np.array([nearest[2] - t.burial_m]) if buried else None
+        src = self._source_rays(g, nearest[None, :], buried=buried, seabed_z=zsb)
+        u = float(src["u"][0])
+        if not math.isfinite(u):
+            return math.nan, math.nan, math.nan
+        phi = math.radians(g.roll_deg)
+        axis = np.array([0.0, math.cos(phi), math.sin(phi)])
+        down = np.array([0.0, -math.sin(phi), math.cos(phi)])
+        kappa = float(np.clip(src["launch"][0] @ axis, -1.0, 1.0))
+        d = kappa * axis + math.sqrt(1.0 - kappa * kappa) * down     # launch direction in the plane
+        if not buried:
+            medium = self.svp
+        elif self.svp_sediment is not None:
+            medium = self.svp_sediment
+        else:
+            medium = SoundSpeedProfile.with_sediment(
+                self.svp, float(zsb[0]), self.scene.seabed.sound_speed_ratio
+                * float(self.svp.speed(float(zsb[0]), side="above")))
+        dy, z = _ray_point(medium, float(g.source[2]), float(d[1]), float(src["time_s"][0]))
+        return float(g.source[1]) + dy, z, u
 
     # -- the dataset ---------------------------------------------------------------
     def navigation(self, g: PingGeometry) -> tuple[float, float]:
@@ -1945,6 +2513,13 @@ class Simulator:
                 "target_kinds": ",".join(_TARGET_KINDS_INV[type(t)] for t in sc.targets),
             },
         )
+        if self.svp is not None:
+            ds["sound_speed"].attrs["long_name"] = "sound speed at the transducers (z = 0 of svp_depth)"
+            ds["svp_depth"] = (("svp",), np.array(self.svp.depths_m), {
+                "units": "m", "long_name": "sound-speed profile depth below the transducers' mean depth "
+                                           "(earth-frame z, positive down)"})
+            ds["svp_speed"] = (("svp",), np.array(self.svp.speeds_m_s),
+                               {"units": "m/s", "long_name": "sound-speed profile speed"})
         if self._provinces is not None:
             mz = np.array([self.province_mz(float(i) * sc.survey.step_m) for i in self.indices])
             ds["truth_province_mz"] = (("ping",), mz, {"units": "phi", "long_name":
