@@ -391,6 +391,11 @@ def launch_tiles(window: np.ndarray, local_angles: int) -> np.ndarray:
     A tile is ``local_angles`` consecutive angles at one range row; for each
     block of angles the rows from the smallest first to the largest end are
     launched, the kernel zeroes the cells of a tile outside their own window.
+    Tiles are ordered by range row, then angle: the cells of one range row
+    read each channel's record within a few dozen samples of one another,
+    so consecutive work-groups find their samples in cache (2.2-2.5x faster
+    for the low-order modes on a CPU than angle-block order, which streams
+    the whole record once per block of angles; bench/kernel_profile.py).
     """
     n = window.shape[0] // local_angles
     blocks = window.reshape(n, local_angles, 2)
@@ -400,7 +405,8 @@ def launch_tiles(window: np.ndarray, local_angles: int) -> np.ndarray:
     counts = np.maximum(hi - lo, 0)
     first = np.repeat(np.arange(n) * local_angles, counts)
     rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi) if b > a] or [np.zeros(0, dtype=np.int64)])
-    return np.stack([first, rows], axis=1).astype(np.int32)
+    tiles = np.stack([first, rows], axis=1).astype(np.int32)
+    return tiles[np.lexsort((tiles[:, 0], tiles[:, 1]))]
 
 
 #: truncation error allowed for the Fresnel expansion of the element delays (samples)
