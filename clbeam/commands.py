@@ -1,4 +1,4 @@
-"""Subcommands beyond image/peaks/devices: simulate, demo, bench, forward, profile.
+"""Subcommands beyond image/peaks/devices: simulate, demo, bench, forward, profile, avo, survey, sediment-speed.
 
 Each registrar is ``register(subparsers, add_common_options)``; the CLI calls
 them all when it builds its parser.
@@ -8,6 +8,10 @@ from __future__ import annotations
 
 import sys
 import time
+
+import numpy as np
+
+from .errors import OptionError, require
 
 
 def _say(args):
@@ -131,5 +135,48 @@ def register_survey(sub, common) -> None:
     register(sub, common)
 
 
+def cmd_sediment_speed(args) -> int:
+    from .cli import grid_from_args, options_from_args, progress
+    from .ping import PingFile
+    from .sediment_speed import scan_sediment_speed
+
+    lo, hi, step = args.speeds
+    require(step > 0 and hi > lo, OptionError, f"--speeds needs MIN < MAX and STEP > 0, got {lo:g} {hi:g} {step:g}")
+    require(args.seabed_depth is not None, OptionError, "give the seabed depth below the transducers: --seabed-depth M")
+    speeds = np.arange(lo, hi + 0.5 * step, step)
+    with PingFile(args.pings) as f:
+        require(0 <= args.ping < len(f), OptionError, f"--ping {args.ping} is not in 0..{len(f) - 1}")
+        ping = f.ping(args.ping)
+        grid = grid_from_args(args, f.max_record_range_m())
+    bar = progress(None, total=len(speeds), desc="sediment speed", quiet=args.quiet)
+    scan = scan_sediment_speed(ping, grid, seabed_depth_m=args.seabed_depth, speeds_m_s=speeds,
+                               options=options_from_args(args), backend=args.backend,
+                               progress=lambda msg: bar.update(1))
+    bar.close()
+    if args.output:
+        with open(args.output, "w") as fh:
+            fh.write("speed_m_s,coherence,reflector_depth_m,n_detections\n")
+            for c, k, z, n in zip(scan.speeds_m_s, scan.coherence, scan.reflector_depth_m, scan.n_detections):
+                fh.write(f"{float(c)!r},{float(k)!r},{float(z)!r},{int(n)}\n")
+    print("\n".join(scan.lines() if not args.quiet else scan.lines()[-1:]))
+    return 0
+
+
+def register_sediment_speed(sub, common) -> None:
+    from .cli import add_engine_options, add_grid_options
+
+    sp = sub.add_parser("sediment-speed", help="sediment interval velocity: the speed that makes a sub-bottom "
+                                                "reflector most coherent (scan of candidate speeds)")
+    sp.add_argument("pings", metavar="PINGS.nc", help="ping file")
+    sp.add_argument("--ping", type=int, default=0, help="ping to use (default 0)")
+    sp.add_argument("--speeds", type=float, nargs=3, default=(1450.0, 1800.0, 10.0), metavar=("MIN", "MAX", "STEP"),
+                    dest="speeds", help="candidate sediment speeds (m/s, default 1450 1800 10)")
+    sp.add_argument("-o", "--output", default=None, metavar="SCAN.csv", help="write the scan as CSV")
+    add_grid_options(sp)
+    add_engine_options(sp)
+    common(sp)
+    sp.set_defaults(func=cmd_sediment_speed)
+
+
 REGISTRARS: list = [register_simulate, register_demo, register_bench, register_forward, register_profile, register_avo,
-                    register_survey]
+                    register_survey, register_sediment_speed]

@@ -110,3 +110,19 @@ def profile_point_ping(targets_yz_m, profile, *, n_channels=64, record_s=1.5, t0
     return Ping(samples=out, kind="raw", sample_rate_hz=fs, t0_s=t0_s, sound_speed_m_s=float(profile.speed(0.0)),
                 element_pos_m=elements, source_pos_m=np.zeros(3), channel_valid=np.ones(n_channels, dtype=bool),
                 pulse=pulse, svp=profile)
+
+
+def ping_dataset(ping: Ping, **extra):
+    """A one-ping SPEC §7 dataset (float32 raw samples) of ``ping``, with
+    extra variables (``name=(dims, values)``); the svp when it has one."""
+    import xarray as xr
+
+    pos = ping.element_pos_m
+    vars_ = {"samples": (("ping", "channel", "sample"), ping.samples[None].astype(np.float32)),
+             "sample_rate": ping.sample_rate_hz, "t0": ("ping", [ping.t0_s]), "sound_speed": ping.sound_speed_m_s,
+             "element_x": ("channel", pos[:, 0]), "element_y": ("channel", pos[:, 1]),
+             "element_z": ("channel", pos[:, 2]), "source_y": ping.source_pos_m[1], "source_z": ping.source_pos_m[2],
+             "pulse_f0": ping.pulse.f0_hz, "pulse_f1": ping.pulse.f1_hz, "pulse_duration": ping.pulse.duration_s}
+    if ping.svp is not None:
+        vars_.update(svp_depth=("svp", ping.svp.depths_m), svp_speed=("svp", ping.svp.speeds_m_s))
+    return xr.Dataset({**vars_, **extra})

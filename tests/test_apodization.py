@@ -8,6 +8,8 @@ weights alone, and the coherence of randomly phased channels.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -20,7 +22,7 @@ from clbeam.imager import Imager, ImagingOptions
 from clbeam.ping import PingFile, write_ping_file
 from clbeam.signal import apply_channel_response
 
-from scenes import C, FS, PULSE, bandlimited_noise, point_ping, polar_point, sbp_elements
+from scenes import C, FS, PULSE, bandlimited_noise, ping_dataset, point_ping, polar_point, sbp_elements
 
 # float32 sums of a few channels: relative errors of a few float32 epsilons
 # per channel; 1e-4 leaves a factor ~10 over what 64 channels accumulate
@@ -155,13 +157,8 @@ def test_a_miscalibrated_array_is_restored_by_its_calibration(point_target, tmp_
     gain_db = rng.uniform(-3, 3, ping.n_channels)
     phase_deg = rng.uniform(-90, 90, ping.n_channels)
     bad = apply_channel_response(ping.samples, gain_db, phase_deg)
-    ds = xr.Dataset({
-        "samples": (("ping", "channel", "sample"), bad[None].astype(np.float32)),
-        "sample_rate": FS, "t0": ("ping", [0.0]), "sound_speed": C,
-        "element_x": ("channel", ping.element_pos_m[:, 0]), "element_y": ("channel", ping.element_pos_m[:, 1]),
-        "element_z": ("channel", ping.element_pos_m[:, 2]), "source_y": 0.0, "source_z": 0.0,
-        "pulse_f0": PULSE.f0_hz, "pulse_f1": PULSE.f1_hz, "pulse_duration": PULSE.duration_s,
-        "element_gain_db": ("channel", gain_db), "element_phase_deg": ("channel", phase_deg)})
+    ds = ping_dataset(dataclasses.replace(ping, samples=bad), element_gain_db=("channel", gain_db),
+                      element_phase_deg=("channel", phase_deg))
     with PingFile(write_ping_file(ds, tmp_path / "miscal.nc")) as f:
         stored = f.ping(0)
     np.testing.assert_allclose(stored.element_gain_db, gain_db)

@@ -17,7 +17,7 @@ from clbeam.imager import Imager, ImagingOptions, pick_seabed_depth_m
 from clbeam.ping import PingFile, write_ping_file
 from clbeam.raytrace import SoundSpeedProfile, holland_line1_profile, travel_time_tables
 
-from scenes import FS, bandlimited_noise, profile_point_ping
+from scenes import FS, bandlimited_noise, ping_dataset, profile_point_ping
 
 # float32 sums of 8 channels: a few float32 epsilons per channel, x10 margin
 F32_REL = 1e-4
@@ -121,12 +121,7 @@ def test_seabed_pick_with_the_profile_inverts_the_vertical_travel_time():
 def test_ping_file_svp_is_read_validated_and_used_by_clbeam_image(seabed_target, tmp_path):
     ping, grid, truth = seabed_target
     prof = ping.svp
-    ds = xr.Dataset({
-        "samples": (("ping", "channel", "sample"), ping.samples[None].astype(np.float32)),
-        "sample_rate": FS, "t0": 0.0, "sound_speed": ping.sound_speed_m_s,
-        "element_y": ("channel", ping.element_pos_m[:, 1]), "element_z": ("channel", ping.element_pos_m[:, 2]),
-        "source_y": 0.0, "source_z": 0.0, "pulse_f0": 2000.0, "pulse_f1": 9000.0, "pulse_duration": 0.02,
-        "svp_depth": ("svp", prof.depths_m), "svp_speed": ("svp", prof.speeds_m_s)})
+    ds = ping_dataset(ping)
     path = write_ping_file(ds, tmp_path / "svp.nc")
     with PingFile(path) as f:
         assert f.ping(0).svp == prof
