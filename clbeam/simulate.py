@@ -509,11 +509,13 @@ class LineTarget:
     angle_deg: float = 0.0
     curvature_deg_per_km: float = 0.0
     radius_m: float = 0.11
-    burial_m: float | None = 1.0
+    burial_m: float | None = None
     z_m: float | None = None
     reflectivity: float = 0.8
 
     def __post_init__(self):
+        if self.z_m is None and self.burial_m is None:  # the paper's pipes: 1 m below the seabed
+            object.__setattr__(self, "burial_m", 1.0)
         require((self.z_m is None) != (self.burial_m is None), OptionError,
                 f"target '{self.name}': give exactly one of z_m or burial_m")
         require(abs(self.angle_deg) < 60, OptionError,

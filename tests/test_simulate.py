@@ -447,3 +447,16 @@ def test_scene_file_by_path_and_one_line_errors(tmp_path):
     with pytest.raises(OptionError) as info:
         load_scene("line1", overrides={"sonar.sample_rate_hz": 15000.0})
     assert "sample_rate_hz" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_line_target_in_the_water_loads_from_toml_and_round_trips(tmp_path):
+    f = tmp_path / "wire.toml"
+    f.write_text('[[target]]\nkind = "line"\nname = "wire"\ny_m = 120.0\nz_m = 150.0\n')
+    scene = load_scene(f)
+    wire = scene.targets[0]
+    assert (wire.z_m, wire.burial_m) == (150.0, None)
+    again = load_scene(scene)
+    assert (again.targets[0].z_m, again.targets[0].burial_m) == (150.0, None)
+    # a line target given neither lies 1 m below the seabed, as the paper's pipes
+    f.write_text('[seabed]\ndepth_m = 200.0\n[[target]]\nkind = "line"\nname = "pipe"\ny_m = 120.0\n')
+    assert load_scene(f).targets[0].burial_m == 1.0
