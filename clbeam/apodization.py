@@ -81,8 +81,10 @@ def receive_weights(window: str | Window, element_y_m: np.ndarray) -> np.ndarray
     The window is sampled once per element in the order of the elements'
     across-track position ``element_y_m`` (m), for the whole array: a dead
     channel keeps its place and is simply left out of the sums, so the
-    window's shape does not depend on which channels are alive.  The
-    samples are those of :func:`scipy.signal.get_window` (symmetric).
+    window's shape does not depend on which channels are alive.  Hann and
+    Tukey are the symmetric windows of :mod:`scipy.signal.windows` on
+    ``n + 2`` points without their zero ends (``0.5 (1 - cos(2π (k+1)/(n+1)))``
+    for Hann), Dolph-Chebyshev is ``chebwin(n)``.
     """
     from scipy.signal import windows
 
@@ -91,10 +93,12 @@ def receive_weights(window: str | Window, element_y_m: np.ndarray) -> np.ndarray
     n = y.size
     if w.uniform or n == 1:
         return np.ones(n)
+    # Hann and Tukey on n + 2 points without their two zero ends: every
+    # element keeps a weight (a 2- or 3-element array is not silenced)
     if w.name == "hann":
-        shape = windows.hann(n, sym=True)
+        shape = windows.hann(n + 2, sym=True)[1:-1]
     elif w.name == "tukey":
-        shape = windows.tukey(n, alpha=w.param, sym=True)
+        shape = windows.tukey(n + 2, alpha=w.param, sym=True)[1:-1]
     else:
         with warnings.catch_warnings():  # scipy's note on spectral analysis below 45 dB, not about arrays
             warnings.simplefilter("ignore", UserWarning)

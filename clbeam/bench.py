@@ -142,7 +142,9 @@ def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGr
 
     def prepared(upsample):
         if upsample not in inputs:
-            inputs[upsample] = Imager(grid, ImagingOptions(upsample=upsample), engine=ref).beamform_input(ping)
+            # straight rays: one input serves the timing grid, its subsample and the accuracy window
+            opts = ImagingOptions(upsample=upsample, use_svp=False)
+            inputs[upsample] = Imager(grid, opts, engine=ref).beamform_input(ping)
         return inputs[upsample]
 
     inp1 = prepared(1)

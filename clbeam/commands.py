@@ -136,7 +136,7 @@ def register_survey(sub, common) -> None:
 
 
 def cmd_sediment_speed(args) -> int:
-    from .cli import grid_from_args, options_from_args, progress
+    from .cli import check_output_path, grid_from_args, options_from_args, progress
     from .ping import PingFile
     from .sediment_speed import scan_sediment_speed
 
@@ -144,13 +144,15 @@ def cmd_sediment_speed(args) -> int:
     require(step > 0 and hi > lo, OptionError, f"--speeds needs MIN < MAX and STEP > 0, got {lo:g} {hi:g} {step:g}")
     require(args.seabed_depth is not None, OptionError, "give the seabed depth below the transducers: --seabed-depth M")
     speeds = np.arange(lo, hi + 0.5 * step, step)
+    if args.output:
+        check_output_path(args.output, args.pings)
     with PingFile(args.pings) as f:
         require(0 <= args.ping < len(f), OptionError, f"--ping {args.ping} is not in 0..{len(f) - 1}")
         ping = f.ping(args.ping)
         grid = grid_from_args(args, f.max_record_range_m())
     bar = progress(None, total=len(speeds), desc="sediment speed", quiet=args.quiet)
     scan = scan_sediment_speed(ping, grid, seabed_depth_m=args.seabed_depth, speeds_m_s=speeds,
-                               options=options_from_args(args), backend=args.backend,
+                               options=options_from_args(args), backend=args.backend, threshold=args.threshold,
                                progress=lambda msg: bar.update(1))
     bar.close()
     if args.output:
@@ -166,7 +168,11 @@ def register_sediment_speed(sub, common) -> None:
     from .cli import add_engine_options, add_grid_options
 
     sp = sub.add_parser("sediment-speed", help="sediment interval velocity: the speed that makes a sub-bottom "
-                                                "reflector most coherent (scan of candidate speeds)")
+                                                "reflector most coherent (scan of candidate speeds)",
+                        description="Image one ping with each candidate sediment speed (rays refracted at a flat "
+                                    "seabed at --seabed-depth) and report the speed whose sub-bottom reflector "
+                                    "detections line up best in depth (docs/beyond.md). --sediment-speed, --mlh and "
+                                    "--seabed-band are set by the scan; --threshold defaults to 0.5 here.")
     sp.add_argument("pings", metavar="PINGS.nc", help="ping file")
     sp.add_argument("--ping", type=int, default=0, help="ping to use (default 0)")
     sp.add_argument("--speeds", type=float, nargs=3, default=(1450.0, 1800.0, 10.0), metavar=("MIN", "MAX", "STEP"),
@@ -174,6 +180,8 @@ def register_sediment_speed(sub, common) -> None:
     sp.add_argument("-o", "--output", default=None, metavar="SCAN.csv", help="write the scan as CSV")
     add_grid_options(sp)
     add_engine_options(sp)
+    # the scan merges peaks per arc and sets the sediment speed itself; a stricter threshold keeps the reflector
+    sp.set_defaults(threshold=0.5)
     common(sp)
     sp.set_defaults(func=cmd_sediment_speed)
 

@@ -242,14 +242,13 @@ class Imager:
         applies."""
         profile = self.water_profile(ping)
         c_sed = self.options.sediment_speed_m_s
-        if profile is None and c_sed is None:
+        if (profile is None and c_sed is None) or inp.n_channels == 0:  # no channel: the image is empty anyway
             return inp
         if profile is None:
             profile = SoundSpeedProfile.constant(inp.sound_speed_m_s)
         if c_sed is not None:
             depth = self.options.seabed_depth_m
             if depth is None:
-                require(inp.n_channels > 0, OptionError, "cannot pick the seabed for the sediment speed: no usable channel")
                 depth = pick_seabed_depth_m(inp, profile=profile, centre_depth_m=centre_z_m)
             # 1 cm steps: a picked seabed that moves with heave reuses its tables
             profile = SoundSpeedProfile.with_sediment(profile, round(depth + centre_z_m, 2), c_sed)
@@ -259,7 +258,7 @@ class Imager:
             t0 = time.perf_counter()
             tables = travel_time_tables(profile, self.grid, centre_z_m)
             log.info("travel-time tables of a %d x %d grid in %.2f s", *self.grid.shape, time.perf_counter() - t0)
-            if len(self._tables) >= 4:
+            if len(self._tables) >= 2:  # about 41 bytes per cell each
                 self._tables.pop(next(iter(self._tables)))
             self._tables[key] = tables
         return dataclasses.replace(inp, tables=tables)
@@ -348,8 +347,11 @@ def mlh_tolerances(ping: Ping, grid: PolarGrid, sound_speed_m_s: float) -> dict:
 def check_grid_fits_memory(grid: PolarGrid, options: ImagingOptions, *, fraction: float = 0.5) -> None:
     """Raise :class:`GridError` when one ping's output arrays would need more
     than ``fraction`` of this machine's memory (host memory per ping is about
-    ``n_cells x`` 8 bytes per output plus 16 for CF smoothing and peaks)."""
+    ``n_cells x`` 8 bytes per output plus 16 for CF smoothing and peaks, plus
+    106 for ray-traced travel times when a ping may carry a profile)."""
     per_cell = 8 * (len(options.outputs) + 3 * ("sums" in options.outputs)) + 16
+    if options.use_svp or options.sediment_speed_m_s is not None:
+        per_cell += 2 * 41 + 24  # two cached travel-time table sets and the kernel's per-cell copy
     need = grid.n_cells * per_cell
     try:
         total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")

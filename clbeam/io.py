@@ -24,11 +24,11 @@ IMAGE_FORMAT = "images-1"
 
 VARIABLES = {
     "intensity": ("intensity |S|^2 (Holland et al. 2024 eq. 1)", "squared input units"),
-    "cf": ("coherence factor |S|^2 / (M Q)", "1"),
+    "cf": ("coherence factor |S|^2 / (M Q); |S|^2 / (W Q) with apodization", "1"),
     "cf_smooth": ("coherence factor, 7-point Hann smoothed along range", "1"),
-    "s_r": ("coherent sum S, real part", "input units"),
+    "s_r": ("coherent sum S = sum w p, real part", "input units"),
     "s_i": ("coherent sum S, imaginary part", "input units"),
-    "q": ("incoherent sum Q = sum |p|^2", "squared input units"),
+    "q": ("incoherent sum Q = sum w |p|^2 (w = 1 without apodization)", "squared input units"),
     "m": ("number of contributing channels M", "1"),
     "w": ("sum W of the contributing channels' apodization weights", "1"),
 }

@@ -102,6 +102,8 @@ def regional_maxima_above(img: np.ndarray, threshold: float) -> np.ndarray:
     """
     from scipy import ndimage
 
+    if img.size and np.all(img == img.flat[0]):  # a constant image has no regional maximum (scikit-image)
+        return np.zeros(img.shape, dtype=bool)
     above = img > threshold
     padded = np.pad(img, 1, constant_values=-np.inf)
     n_a, n_r = img.shape

@@ -203,7 +203,8 @@ class VerticalBeam:
         from .engine import get_engine
 
         self.axis = axis
-        self.options = ImagingOptions(interp=interp, outputs=("sums",))
+        # trace sample k is at range c t_k / 2: straight rays, whatever profile the file has
+        self.options = ImagingOptions(interp=interp, outputs=("sums",), use_svp=False)
         self.engine = engine if engine is not None else get_engine(backend, device=device)
         self._imagers: dict[float, Imager] = {}
 

@@ -153,6 +153,8 @@ def scan_sediment_speed(ping, grid: PolarGrid, *, seabed_depth_m: float, speeds_
         depth.append(at)
         count.append(int(keep.sum()))
     k = np.array(k)
+    require(k.max() > 0, OptionError, f"no coherence detection deeper than {seabed_margin_m:g} m below the seabed at "
+            "any candidate speed; check --seabed-depth, the grid window and the threshold")
     est = refine_maximum(speeds, k)
     log.info("sediment speed scan: %.1f m/s", est)
     return SpeedScan(speeds, k, np.array(depth), np.array(count), est)

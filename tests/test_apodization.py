@@ -84,8 +84,9 @@ def test_weighted_cf_is_one_for_identical_channels_and_within_zero_one_for_noise
 def test_window_weights_against_their_closed_forms():
     y = sbp_elements(64)[:, 1]
     n = np.arange(64)
-    hann = 0.5 * (1 - np.cos(2 * np.pi * n / 63))
+    hann = 0.5 * (1 - np.cos(2 * np.pi * (n + 1) / 65))  # no zero end: every element weighs
     np.testing.assert_allclose(receive_weights("hann", y), hann / hann.max(), atol=1e-12)
+    assert np.all(receive_weights("hann", y[:2]) > 0) and np.all(receive_weights("tukey:0.5", y[:3]) > 0)
     np.testing.assert_allclose(receive_weights("tukey:0", y), 1.0)
     np.testing.assert_allclose(receive_weights("tukey:1", y), receive_weights("hann", y), atol=1e-12)
     # elements listed in any order get the weight of their position

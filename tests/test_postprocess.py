@@ -98,3 +98,11 @@ def test_fast_regional_maxima_equal_scikit_image_on_plateau_rich_images(seed):
     for threshold in (0.0, 0.3, 0.6):
         want = local_maxima(img, connectivity=2, allow_borders=True) & (img > threshold)
         np.testing.assert_array_equal(regional_maxima_above(img, threshold), want)
+
+
+def test_a_constant_image_has_no_regional_maximum_as_in_scikit_image():
+    from skimage.morphology import local_maxima
+
+    img = np.full((5, 7), 0.8)
+    assert not local_maxima(img, connectivity=2, allow_borders=True).any()
+    assert len(coherence_peaks(img, 0.25)) == 0

@@ -85,3 +85,12 @@ def test_clbeam_sediment_speed_prints_the_estimate_and_writes_the_scan(reflector
     rows = np.loadtxt(tmp_path / "scan.csv", delimiter=",", skiprows=1)
     assert rows.shape == (9, 4) and rows[:, 0].tolist() == list(np.arange(1560.0, 1641.0, 10.0))
     assert cli.main(["sediment-speed", str(path), "-q"]) == 2  # no seabed depth: one-line error
+
+
+def test_a_scan_without_any_sub_bottom_detection_is_an_error_not_an_estimate(reflector):
+    ping, grid = reflector
+    from dataclasses import replace
+
+    with pytest.raises(OptionError, match="no coherence detection"):
+        # the seabed put below the whole window: nothing can lie under it
+        scan_sediment_speed(replace(ping, svp=None), grid, seabed_depth_m=200.0, speeds_m_s=[1590.0, 1600.0, 1610.0])

@@ -147,3 +147,12 @@ def test_ping_file_svp_is_read_validated_and_used_by_clbeam_image(seabed_target,
 def test_sediment_speed_option_is_checked():
     with pytest.raises(OptionError, match="sediment speed"):
         ImagingOptions(sediment_speed_m_s=900.0)
+
+
+def test_a_ping_without_usable_channels_images_empty_with_a_sediment_speed(seabed_target):
+    import dataclasses
+
+    ping, grid, _ = seabed_target
+    dead = dataclasses.replace(ping, channel_valid=np.zeros(ping.n_channels, dtype=bool))
+    img = Imager(grid, ImagingOptions(sediment_speed_m_s=1600.0)).image(dead)
+    assert img.n_channels_used == 0 and np.all(img.intensity == 0) and np.all(img.cf == 0)

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import DeviceError, GridError, OptionError, require
 from ..geometry import PolarGrid
 from .common import (BeamformInput, InterpMode, Sums, baseband, carrier_phase, cell_windows, check_outputs,
-                     check_record_length, interp_mode)
+                     check_record_length, interp_mode, range_bases)
 
 log = logging.getLogger(__name__)
 
@@ -265,12 +265,7 @@ class OpenCLEngine:
 
         th = np.deg2rad(grid.angles_deg)
         angle_tab = np.stack([np.sin(th), np.cos(th)], axis=1).astype(real)
-        base = (2.0 * grid.ranges_m / inp.sound_speed_m_s - inp.t0_s) * inp.sample_rate_hz
-        base_int = np.floor(base)
-        require(bool(np.all(np.abs(base_int) < 2**31 - 2**20)), GridError,
-                "grid ranges reach beyond 2^31 samples of the record; reduce the maximum range")
-        base_frac = (base - base_int).astype(real)
-        base_phase = carrier_phase(inp.centre_frequency_hz, inp.sample_rate_hz, base_int).astype(real)
+        base_int, base_frac, base_phase = split_samples(range_bases(inp, grid), inp, real)
         window = cell_windows(inp, grid, mode, range_window_m)
 
         apodize = inp.weights is not None
@@ -283,7 +278,7 @@ class OpenCLEngine:
         b_data = self._upload("data", inter)
         b_chan = self._upload("chan", chan)
         b_range = self._upload("range", grid.ranges_m.astype(real))
-        b_bint = self._upload("base_int", base_int.astype(np.int32))
+        b_bint = self._upload("base_int", base_int)
         b_bfrac = self._upload("base_frac", base_frac)
         b_bphase = self._upload("base_phase", base_phase)
 
@@ -359,6 +354,19 @@ class OpenCLEngine:
 TABLE_NAMES = ("int", "frac", "phase", "sin", "cos", "rho")
 #: integer tap of a cell no ray reaches: far before any record, so never inside
 UNREACHABLE_TAP = -(1 << 30)
+#: wavefront radii (m) are clipped here for the float32 kernel
+MAX_WAVEFRONT_RADIUS_M = 1e8
+
+
+def split_samples(base: np.ndarray, inp: BeamformInput, real) -> tuple:
+    """Sample positions (float64) split into the integer sample (int32), the
+    fraction and the carrier phase at the integer sample (``real``): float32
+    keeps sub-sample precision at any range this way."""
+    k = np.floor(base)
+    require(bool(np.all(np.abs(k) < 2**31 - 2**20)), GridError,
+            "grid ranges reach beyond 2^31 samples of the record; reduce the maximum range")
+    phase = carrier_phase(inp.centre_frequency_hz, inp.sample_rate_hz, k.astype(np.int64)).astype(real)
+    return k.astype(np.int32), (base - k).astype(real), phase
 
 
 def cell_tables(inp: BeamformInput, grid: PolarGrid, real=np.float32) -> dict:
@@ -369,18 +377,18 @@ def cell_tables(inp: BeamformInput, grid: PolarGrid, real=np.float32) -> dict:
     and finite dummies."""
     tab = inp.tables
     base = inp.cell_base_samples(grid)
-    ok = np.isfinite(base)
-    require(bool(np.all(np.abs(base[ok]) < 2**31 - 2**20)), GridError,
-            "grid ranges reach beyond 2^31 samples of the record; reduce the maximum range")
-    k = np.where(ok, np.floor(np.where(ok, base, 0.0)), 0.0)
+    ok = np.isfinite(base) & np.isfinite(tab.wavefront_radius_m) & np.isfinite(tab.launch_sin) & np.isfinite(tab.launch_cos)
+    k, frac, phase = split_samples(np.where(ok, base, 0.0), inp, real)
     th = np.deg2rad(grid.angles_deg)[:, None]
     return {
         "int": np.where(ok, k, UNREACHABLE_TAP).astype(np.int32),
-        "frac": np.where(ok, base - k, 0.0).astype(real),
-        "phase": carrier_phase(inp.centre_frequency_hz, inp.sample_rate_hz, k.astype(np.int64)).astype(real),
+        "frac": np.where(ok, frac, 0.0).astype(real),
+        "phase": phase,
         "sin": np.where(ok, tab.launch_sin, np.sin(th)).astype(real),
         "cos": np.where(ok, tab.launch_cos, np.cos(th)).astype(real),
-        "rho": np.where(ok, tab.wavefront_radius_m, grid.ranges_m[None, :]).astype(real),
+        # near grazing rays the radius can reach 1e11 m, whose square overflows
+        # float32; beyond 1e8 m the curvature term is below 1e-8 m anyway
+        "rho": np.where(ok, np.minimum(tab.wavefront_radius_m, MAX_WAVEFRONT_RADIUS_M), grid.ranges_m[None, :]).astype(real),
     }
 
 
