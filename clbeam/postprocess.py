@@ -72,7 +72,7 @@ def coherence_peaks(cf_smooth: np.ndarray, threshold: float = DEFAULT_THRESHOLD)
     require(img.ndim == 2, OptionError, f"coherence peaks need a 2-D (angle, range) image, got shape {img.shape}")
     if img.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    maxima = regional_maxima_above(img, threshold)
+    maxima = local_maxima(img, connectivity=2, allow_borders=True) & (img > threshold)
     labels, n = label(maxima, connectivity=2, return_num=True)
     if n == 0:
         return np.zeros((0, 2), dtype=np.int64)
@@ -86,53 +86,6 @@ def coherence_peaks(cf_smooth: np.ndarray, threshold: float = DEFAULT_THRESHOLD)
     first = order[np.r_[True, lab[order][1:] != lab[order][:-1]]]
     peaks = idx[first]
     return peaks[np.argsort(-img[peaks[:, 0], peaks[:, 1]], kind="stable")]
-
-
-def regional_maxima_above(img: np.ndarray, threshold: float) -> np.ndarray:
-    """Mask of the regional maxima (``imregionalmax``, 8-connectivity, the
-    image border counting as lower) whose value exceeds ``threshold``.
-
-    Equal to ``skimage.morphology.local_maxima(img, connectivity=2,
-    allow_borders=True) & (img > threshold)``, computed fast: a cell above
-    the threshold and strictly above its 8 neighbours is a maximum outright;
-    only cells with an equal neighbour (plateaus) go to the exact plateau
-    analysis of scikit-image, on the bounding box of their connected set
-    padded by one cell (a plateau lies wholly in one such set, its rim in
-    the padding).
-    """
-    from scipy import ndimage
-
-    if img.size and np.all(img == img.flat[0]):  # a constant image has no regional maximum (scikit-image)
-        return np.zeros(img.shape, dtype=bool)
-    above = img > threshold
-    padded = np.pad(img, 1, constant_values=-np.inf)
-    n_a, n_r = img.shape
-    strict = above.copy()
-    equal = np.zeros_like(above)
-    for da in (-1, 0, 1):
-        for dr in (-1, 0, 1):
-            if da == 0 and dr == 0:
-                continue
-            nb = padded[1 + da:1 + da + n_a, 1 + dr:1 + dr + n_r]
-            strict &= img > nb
-            equal |= img == nb
-    tied = above & equal
-    if tied.any():
-        sets, _ = ndimage.label(tied, structure=np.ones((3, 3), dtype=bool))
-        for k, box in enumerate(ndimage.find_objects(sets), start=1):
-            a0, a1 = max(box[0].start - 1, 0), min(box[0].stop + 1, n_a)
-            r0, r1 = max(box[1].start - 1, 0), min(box[1].stop + 1, n_r)
-            crop = img[a0:a1, r0:r1]
-            # the crop's own edges are not the image border: pad them with the
-            # real neighbours where they exist, -inf beyond the image
-            ea0, ea1 = a0 - max(a0 - 1, 0), min(a1 + 1, n_a) - a1
-            er0, er1 = r0 - max(r0 - 1, 0), min(r1 + 1, n_r) - r1
-            ctx = img[a0 - ea0:a1 + ea1, r0 - er0:r1 + er1]
-            ctx = np.pad(ctx, ((1 - ea0, 1 - ea1), (1 - er0, 1 - er1)), constant_values=-np.inf)
-            local = local_maxima(ctx, connectivity=2, allow_borders=False)[1:-1, 1:-1]
-            member = sets[a0:a1, r0:r1] == k
-            strict[a0:a1, r0:r1] |= local & member & (crop > threshold)
-    return strict
 
 
 def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float, intensity: float,

@@ -86,20 +86,6 @@ def test_plateau_touching_a_higher_neighbour_is_not_a_peak():
     assert [tuple(p) for p in peaks] == [(2, 4)]
 
 
-@pytest.mark.parametrize("seed", range(12))
-def test_fast_regional_maxima_equal_scikit_image_on_plateau_rich_images(seed):
-    from skimage.morphology import local_maxima
-
-    from clbeam.postprocess import regional_maxima_above
-
-    rng = np.random.default_rng(seed)
-    levels = int(rng.integers(2, 7))  # few levels: plateaus everywhere, touching the borders too
-    img = (np.round(rng.random((37, 53)) * levels) / levels).astype(np.float32 if seed % 2 else np.float64)
-    for threshold in (0.0, 0.3, 0.6):
-        want = local_maxima(img, connectivity=2, allow_borders=True) & (img > threshold)
-        np.testing.assert_array_equal(regional_maxima_above(img, threshold), want)
-
-
 def test_a_constant_image_has_no_regional_maximum_as_in_scikit_image():
     from skimage.morphology import local_maxima
 
