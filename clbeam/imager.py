@@ -412,13 +412,16 @@ def seabed_window_m(grid: PolarGrid, depth_m: float, band_m: tuple) -> np.ndarra
 
 
 def rescale(values: np.ndarray, exponent: int) -> np.ndarray:
-    """``values * 2**exponent`` exactly: in place in float32 when the result
-    stays far inside float32's range, in float64 otherwise."""
-    if exponent == 0:
+    """``values * 2**exponent`` exactly: in place in float32 when the largest
+    result stays within ``2^-60 .. 2^120`` (no overflow, and values down to
+    18 orders of magnitude below the largest stay normal), in float64
+    otherwise."""
+    if exponent == 0 or values.size == 0:
         return values
-    if values.dtype == np.float32 and -20 <= exponent < 100:  # no denormals, no overflow
-        values *= np.float32(2.0**exponent)
-        return values
+    if values.dtype == np.float32:
+        top = float(np.max(values))
+        if top == 0 or (np.isfinite(top) and -60 <= np.frexp(top)[1] + exponent <= 120):
+            return np.ldexp(values, np.int32(exponent), out=values)
     return np.ldexp(values.astype(np.float64), exponent)
 
 
