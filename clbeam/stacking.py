@@ -18,6 +18,7 @@ ping, average out: fewer false coherence peaks.
 
 from __future__ import annotations
 
+import functools
 from collections import deque
 from dataclasses import dataclass
 
@@ -41,8 +42,8 @@ class StackedImage:
         Mean ``|S|^2`` over the stacked pings (squared input units), ``(n_angle, n_range)``.
     cf, cf_smooth : numpy.ndarray
         Stacked coherence factor and its 7-point Hann smoothing along range.
-    peaks : numpy.ndarray
-        ``(n_peaks, 2)`` (angle, range) indices of the coherence peaks of ``cf_smooth``.
+    threshold : float
+        Coherence-peak threshold of :attr:`peaks`.
     """
 
     ping: int
@@ -50,7 +51,13 @@ class StackedImage:
     intensity: np.ndarray
     cf: np.ndarray
     cf_smooth: np.ndarray
-    peaks: np.ndarray
+    threshold: float = 0.25
+
+    @functools.cached_property
+    def peaks(self) -> np.ndarray:
+        """``(n_peaks, 2)`` (angle, range) indices of the coherence peaks of
+        ``cf_smooth`` (found on first use: the CLI makes its peak rows itself)."""
+        return coherence_peaks(self.cf_smooth, self.threshold)
 
 
 class PingStack:
@@ -92,7 +99,7 @@ class PingStack:
             cf = np.where(den > 0, num / den, 0.0)
         cf_smooth = hann_smooth(cf)
         return StackedImage(ping=img.ping, pings=tuple(w[0] for w in self._window), intensity=num / len(self._window),
-                            cf=cf, cf_smooth=cf_smooth, peaks=coherence_peaks(cf_smooth, self.threshold))
+                            cf=cf, cf_smooth=cf_smooth, threshold=self.threshold)
 
 
 def stacked_ping_image(img, stacked: StackedImage, peak_rows, *, keep_sums: bool = False):
