@@ -24,15 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
-from clbeam.apodization import calibration_factors, receive_weights, sidelobe_level_db
-from clbeam.demo import score_targets
-from clbeam.geometry import PolarGrid
-from clbeam.imager import Imager, ImagingOptions
-from clbeam.ping import PingFile, write_ping_file
-from clbeam.postprocess import peak_row
-from clbeam.signal import apply_channel_response
-from clbeam.simulate import load_scene, simulate
-from clbeam.stacking import PingStack
+from clbeam.imaging.apodization import calibration_factors, receive_weights, sidelobe_level_db
+from clbeam.evaluation.demo import score_targets
+from clbeam.model.grid import PolarGrid
+from clbeam.imaging.imager import Imager, ImagingOptions
+from clbeam.io.pingfile import PingFile, write_ping_file
+from clbeam.imaging.postprocess import peak_row
+from clbeam.imaging.signal import apply_channel_response
+from clbeam.sim.simulator import load_scene, simulate
+from clbeam.imaging.stacking import PingStack
 
 WINDOWS = ("rect", "hann", "tukey:0.5", "chebyshev:30", "chebyshev:40")
 
@@ -145,7 +145,7 @@ def main(argv=None) -> int:
               "a detection is a peak within 2 m of a pipeline:", "",
               "| pings stacked | threshold | pipelines detected | other peaks per ping |", "|---:|---:|---:|---:|"]
     lines += [f"| {k} | {thr:g} | {h}/{n} | {o:.1f} |" for k, thr, h, n, o in stacking_rows(out, args.pings)]
-    from clbeam.mlh import compare_on_simulation
+    from clbeam.imaging.mlh import compare_on_simulation
 
     lines += ["", f"Main-lobe highlight suppression on line1 ({args.pings} pings):", ""]
     for threshold in (0.25, 0.4):

@@ -12,7 +12,7 @@ sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 @pytest.fixture(scope="session")
 def paper_input():
     """Analytic band-limited data, 64 channels x 1.5 s at 40 kHz, SBP29 array."""
-    from clbeam.engine import BeamformInput
+    from clbeam.imaging.engine import BeamformInput
     from scenes import bandlimited_noise, sbp_elements
 
     data = bandlimited_noise((64, 60000), seed=0)
@@ -21,6 +21,6 @@ def paper_input():
 
 @pytest.fixture(scope="session")
 def engine():
-    from clbeam.engine import get_engine
+    from clbeam.imaging.engine import get_engine
 
     return get_engine("opencl")

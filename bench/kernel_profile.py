@@ -29,8 +29,8 @@ CHILD = "--child"
 
 def run_child(modes, compact: bool) -> None:
     sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
-    from clbeam.bench import paper_grid
-    from clbeam.engine import BeamformInput, get_engine
+    from clbeam.evaluation.bench import paper_grid
+    from clbeam.imaging.engine import BeamformInput, get_engine
     from scenes import bandlimited_noise, sbp_elements
 
     c = 1500.0 * (30 if compact else 1)

@@ -8,8 +8,8 @@ intensity and CF) for 64 channels on 0.2 m x 0.1 degree, 0-1100 m, ±80°.
 
 import pytest
 
-from clbeam.bench import paper_grid
-from clbeam.engine import INTERP_MODES
+from clbeam.evaluation.bench import paper_grid
+from clbeam.imaging.engine import INTERP_MODES
 
 GRID = paper_grid()
 
@@ -24,7 +24,7 @@ def test_kernel_paper_grid(benchmark, engine, paper_input, mode):
 
 
 def test_numba_baseline_paper_grid(benchmark, paper_input):
-    from clbeam.engine.numba_das import numba_beamform
+    from clbeam.evaluation.baselines import numba_beamform
 
     numba_beamform(paper_input, GRID)
     benchmark.pedantic(numba_beamform, args=(paper_input, GRID), rounds=2, iterations=1)

@@ -6,8 +6,8 @@
 import numpy as np
 import pytest
 
-from clbeam.bench import paper_grid
-from clbeam.imager import Imager, ImagingOptions
+from clbeam.evaluation.bench import paper_grid
+from clbeam.imaging.imager import Imager, ImagingOptions
 from scenes import point_ping, polar_point
 
 GRID = paper_grid()

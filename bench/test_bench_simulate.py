@@ -3,7 +3,7 @@
 What is timed, on one core (set ``OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1``):
 
 - ``test_bench_line1_ping``: one ping of the ``line1`` scene rendered by a
-  prepared :class:`~clbeam.simulate.Simulator` — 64 channels, 40 534 samples
+  prepared :class:`~clbeam.sim.simulator.Simulator` — 64 channels, 40 534 samples
   (1.01 s at 40 kHz, ranges to 700 m), about 20 000 scatterers (three
   pipelines, two rough interfaces, five specular paths) and noise.  The
   cost scales with scatterers × channels, plus one FFT per channel.
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import pytest
 
-from clbeam.simulate import Simulator
+from clbeam.sim.simulator import Simulator
 
 
 @pytest.fixture(scope="module")

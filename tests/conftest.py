@@ -13,7 +13,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 @pytest.fixture(scope="session")
 def cl_engine():
     """The OpenCL engine on the default device (PoCL in CI): never skipped."""
-    from clbeam.engine import get_engine
+    from clbeam.imaging.engine import get_engine
 
     return get_engine("opencl")
 
@@ -21,6 +21,6 @@ def cl_engine():
 @pytest.fixture(scope="session")
 def ref_engine():
     """The float64 NumPy reference engine."""
-    from clbeam.engine import get_engine
+    from clbeam.imaging.engine import get_engine
 
     return get_engine("reference")

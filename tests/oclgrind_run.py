@@ -12,9 +12,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from clbeam.engine import INTERP_MODES, BeamformInput, get_engine  # noqa: E402
-from clbeam.engine.opencl import device_has_fp64  # noqa: E402
-from clbeam.geometry import PolarGrid  # noqa: E402
+from clbeam.imaging.engine import INTERP_MODES, BeamformInput, get_engine  # noqa: E402
+from clbeam.imaging.engine.opencl import device_has_fp64  # noqa: E402
+from clbeam.model.grid import PolarGrid  # noqa: E402
 from scenes import bandlimited_noise  # noqa: E402
 
 data = bandlimited_noise((6, 160), seed=2)
@@ -22,7 +22,7 @@ data[2, 40:45] = np.nan
 eo = np.zeros((6, 3))
 eo[:, 1] = np.linspace(-1.5, 1.5, 6)
 inp = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0)
-from clbeam.raytrace import SoundSpeedProfile, travel_time_tables  # noqa: E402
+from clbeam.imaging.raytrace import SoundSpeedProfile, travel_time_tables  # noqa: E402
 
 # rays through a strong gradient: some cells of the tiny grid unreachable
 tabled = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0,
@@ -39,7 +39,7 @@ first = get_engine("opencl")
 print("device:", first.label)
 if device_has_fp64(first.device):
     precisions.append("float64")
-from clbeam.engine.opencl import OpenCLEngine  # noqa: E402
+from clbeam.imaging.engine.opencl import OpenCLEngine  # noqa: E402
 
 # every precision with the CPU layout (16 lanes), and the GPU layout (1 lane, groups of 8) in float32
 runs = [(p, (16, 1)) for p in precisions] + [("float32", (1, 8)), ("float32", (4, 2))]

@@ -7,10 +7,11 @@ the replica), so they are the band-limited truth the imager should recover.
 from __future__ import annotations
 
 import numpy as np
+import xarray as xr
 
-from clbeam.geometry import to_earth_frame
-from clbeam.ping import Ping, Pulse
-from clbeam.signal import lfm_replica
+from clbeam.model.grid import to_earth_frame
+from clbeam.imaging.engine import BeamformInput
+from clbeam.io.pingfile import Ping, Pulse
 
 FS = 40000.0
 C = 1500.0
@@ -92,10 +93,10 @@ def profile_point_ping(targets_yz_m, profile, *, n_channels=64, record_s=1.5, t0
                        fs=FS) -> Ping:
     """A ping of point scatterers (earth-frame ``(y, z)``, m) in a stratified
     ocean: each echo's delay is the exact eigenray time source → scatterer →
-    element (:func:`clbeam.raytrace.element_travel_times`), spreading
+    element (:func:`clbeam.imaging.raytrace.element_travel_times`), spreading
     ``1 / (|r - s| |r - e_n|)``; the file's sound speed is the profile's at
     the transducers, and ``svp`` carries the profile."""
-    from clbeam.raytrace import element_travel_times
+    from clbeam.imaging.raytrace import element_travel_times
 
     targets = np.atleast_2d(np.asarray(targets_yz_m, dtype=float))
     elements = sbp_elements(n_channels)
@@ -126,3 +127,37 @@ def ping_dataset(ping: Ping, **extra):
     if ping.svp is not None:
         vars_.update(svp_depth=("svp", ping.svp.depths_m), svp_speed=("svp", ping.svp.speeds_m_s))
     return xr.Dataset({**vars_, **extra})
+
+
+def dataset(n_pings=3, kind="raw", seed=0):
+    pings = [point_ping(polar_point(40 + 5 * i, 10 * i), kind=kind, record_s=0.08, roll_deg=i) for i in range(n_pings)]
+    p0 = pings[0]
+    samples = np.stack([p.samples for p in pings])
+    ds = xr.Dataset(
+        {
+            "samples": (("ping", "channel", "sample"), samples, {"kind": kind}),
+            "sample_rate": ((), p0.sample_rate_hz, {"units": "Hz"}),
+            "t0": (("ping",), np.zeros(n_pings), {"units": "s"}),
+            "element_y": (("channel",), p0.element_pos_m[:, 1], {"units": "m"}),
+            "element_z": (("channel",), p0.element_pos_m[:, 2], {"units": "m"}),
+            "source_y": ((), 0.0), "source_z": ((), 0.0),
+            "sound_speed": (("ping",), np.full(n_pings, 1500.0)),
+            "roll": (("ping",), np.arange(n_pings, dtype=float)),
+            "pulse_f0": ((), 2000.0), "pulse_f1": ((), 9000.0), "pulse_duration": ((), 0.02),
+            "latitude": (("ping",), 34.3 + 1e-4 * np.arange(n_pings)),
+            "longitude": (("ping",), np.full(n_pings, -119.8)),
+        },
+        attrs={"clbeam_format": "ping-1"},
+    )
+    return ds, pings
+
+
+def random_input(seed=0, n_ch=24, n_s=3000, t0=0.002):
+    rng = np.random.default_rng(seed)
+    data = bandlimited_noise((n_ch, n_s), seed=seed)
+    eo = np.zeros((n_ch, 3))
+    eo[:, 0] = rng.uniform(-0.1, 0.1, n_ch)
+    eo[:, 1] = np.sort(rng.uniform(-1.8, 1.8, n_ch))
+    eo[:, 2] = rng.uniform(-0.2, 0.2, n_ch)
+    src = rng.uniform(-0.5, 0.5, 3)
+    return BeamformInput(data, FS, t0, 1500.0, eo, src, centre_frequency_hz=5500.0)

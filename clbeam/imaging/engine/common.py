@@ -1,0 +1,295 @@
+"""Shared definitions of both engine backends: modes, inputs, tables, results."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from clbeam.errors import GeometryError, GridError, OptionError, require
+from clbeam.model.grid import PolarGrid
+
+#: outputs a caller may request
+OUTPUTS = ("intensity", "cf", "sums")
+
+
+@dataclass(frozen=True)
+class InterpMode:
+    """An interpolation mode of the delay-and-sum.
+
+    Attributes
+    ----------
+    name : str
+        Mode name as used by the API and the ``--interp`` option.
+    kernel_id : int
+        ``INTERP`` macro of ``kernels/interp.h`` (-1: reference only).
+    lanczos_a : int
+        Lobes of the Lanczos window (mode ``lanczos*``).
+    baseband : bool
+        Interpolate the basebanded signal and restore the carrier phase.
+    taps_before, taps_after : int
+        Support around the integer tap ``k``; a sample contributes only when
+        ``k - taps_before >= 0`` and ``k + taps_after <= n_samples - 1``.
+    """
+
+    name: str
+    kernel_id: int
+    lanczos_a: int = 0
+    baseband: bool = False
+    taps_before: int = 0
+    taps_after: int = 0
+    description: str = ""
+
+
+#: half-width (lobes) of the windowed-sinc "exact" reference interpolator
+EXACT_HALF_WIDTH = 32
+
+INTERP_MODES: dict[str, InterpMode] = {m.name: m for m in (
+    InterpMode("nearest", 0, description="nearest sample"),
+    InterpMode("linear", 1, taps_after=1, description="linear between two samples"),
+    InterpMode("linear-bb", 1, baseband=True, taps_after=1,
+               description="linear on the basebanded signal, carrier phase restored"),
+    InterpMode("cubic", 2, taps_before=1, taps_after=2, description="Keys cubic (Catmull-Rom), 4 taps"),
+    InterpMode("lanczos4", 3, lanczos_a=4, taps_before=3, taps_after=4, description="Lanczos, 4 lobes, 8 taps"),
+    InterpMode("lanczos8", 3, lanczos_a=8, taps_before=7, taps_after=8, description="Lanczos, 8 lobes, 16 taps"),
+    InterpMode("exact", -1, taps_before=EXACT_HALF_WIDTH - 1, taps_after=EXACT_HALF_WIDTH,
+               description="band-limited (Kaiser-windowed sinc, 64 taps), float64 reference only"),
+)}
+
+
+def interp_mode(name: str) -> InterpMode:
+    """Look up an interpolation mode by name (one-line error when unknown)."""
+    require(name in INTERP_MODES, OptionError,
+            f"interpolation mode '{name}' is unknown, expected one of {', '.join(INTERP_MODES)}")
+    return INTERP_MODES[name]
+
+
+@dataclass(frozen=True)
+class BeamformInput:
+    """Analytic channels and their earth-frame geometry for one ping.
+
+    Attributes
+    ----------
+    data : numpy.ndarray
+        complex ``(n_channel, n_sample)``: pulse-compressed analytic signal of
+        the channels that take part (dead channels already removed); NaN marks
+        samples to skip.
+    sample_rate_hz : float
+        Sample rate of ``data`` (Hz), after any upsampling.
+    t0_s : float
+        Time of sample 0 after transmit start (s).
+    sound_speed_m_s : float
+        Isospeed sound speed (m/s).
+    element_offsets_m : numpy.ndarray
+        ``(n_channel, 3)`` element positions ``x, y, z`` minus the grid centre
+        ``(0, yc, zc)``, earth frame (m).
+    source_offset_m : numpy.ndarray
+        ``(3,)`` source position minus the grid centre (m).
+    centre_frequency_hz : float
+        Band centre (Hz): the carrier removed by the basebanded modes
+        (0 = unknown, which those modes refuse).
+    weights : numpy.ndarray or None
+        ``(n_channel,)`` receive apodization ``w_n >= 0``
+        (:mod:`clbeam.imaging.apodization`); ``None``: all 1, the unweighted sums.
+    tables : clbeam.imaging.raytrace.TravelTimeTables or None
+        Ray-traced one-way times from the grid centre to every cell of the
+        grid this input is imaged on (a sound-speed profile); ``None``:
+        isospeed straight rays at ``sound_speed_m_s``.  Each point ``o`` (the
+        source, an element) then adds ``d(o) = |rho u - o| - rho`` at the
+        centre's speed, with ``u`` the ray's launch direction and ``rho`` its
+        wavefront radius (:func:`clbeam.imaging.raytrace.offset_time_approx`).
+    """
+
+    data: np.ndarray
+    sample_rate_hz: float
+    t0_s: float
+    sound_speed_m_s: float
+    element_offsets_m: np.ndarray
+    source_offset_m: np.ndarray
+    centre_frequency_hz: float = 0.0
+    weights: np.ndarray | None = None
+    tables: object | None = None
+
+    def __post_init__(self):
+        d = self.data
+        require(d.ndim == 2, GeometryError, f"channel data must be 2-D (channel, sample), got shape {d.shape}")
+        eo = np.asarray(self.element_offsets_m, dtype=np.float64)
+        require(eo.shape == (d.shape[0], 3), GeometryError,
+                f"element offsets must be ({d.shape[0]}, 3) for {d.shape[0]} channels, got {eo.shape}")
+        require(bool(np.all(np.isfinite(eo))) and bool(np.all(np.isfinite(self.source_offset_m))), GeometryError,
+                "element and source positions must be finite")
+        require(self.sample_rate_hz > 0 and np.isfinite(self.sample_rate_hz), OptionError,
+                f"sample rate must be > 0 Hz, got {self.sample_rate_hz!r}")
+        require(self.sound_speed_m_s > 0 and np.isfinite(self.sound_speed_m_s), OptionError,
+                f"sound speed must be > 0 m/s, got {self.sound_speed_m_s!r}")
+        require(np.isfinite(self.t0_s), OptionError, f"t0 must be finite, got {self.t0_s!r}")
+        if self.weights is not None:
+            w = np.asarray(self.weights, dtype=np.float64)
+            require(w.shape == (d.shape[0],), OptionError,
+                    f"apodization weights must be ({d.shape[0]},) for {d.shape[0]} channels, got {w.shape}")
+            require(bool(np.all(np.isfinite(w) & (w >= 0))), OptionError,
+                    "apodization weights must be finite and >= 0")
+
+    @property
+    def n_channels(self) -> int:
+        """Channels taking part."""
+        return self.data.shape[0]
+
+    @property
+    def n_samples(self) -> int:
+        """Samples per channel."""
+        return self.data.shape[1]
+
+    @property
+    def samples_per_m(self) -> float:
+        """Samples per metre of path, ``fs / c`` (``c`` at the grid centre with tables)."""
+        c = self.sound_speed_m_s if self.tables is None else self.tables.centre_speed_m_s
+        return self.sample_rate_hz / c
+
+    def check_tables(self, grid: PolarGrid) -> None:
+        """Raise :class:`GridError` unless the travel-time tables are those of ``grid``."""
+        if self.tables is None:
+            return
+        g = self.tables.grid
+        require(g.shape == grid.shape and np.array_equal(g.ranges_m, grid.ranges_m)
+                and np.array_equal(g.angles_deg, grid.angles_deg), GridError,
+                f"the travel-time tables are for a {g.shape} grid, not this {grid.shape} one")
+
+    def cell_base_samples(self, grid: PolarGrid) -> np.ndarray:
+        """Sample position (float64) of the centre's two-way time to each cell,
+        ``(n_angle, n_range)``: ``(2 T - t0) fs`` from the tables (NaN where no
+        ray reaches), else ``(2 R / c - t0) fs`` broadcast over angles."""
+        if self.tables is None:
+            return np.broadcast_to(range_bases(self, grid)[None, :], grid.shape)
+        return (2.0 * self.tables.time_s - self.t0_s) * self.sample_rate_hz
+
+
+@dataclass
+class Sums:
+    """Per-cell results on a grid, each ``(n_angle, n_range)`` (or ``None``
+    when not requested).
+
+    Attributes
+    ----------
+    intensity : numpy.ndarray
+        ``|S|^2`` (squared input units), Holland eq. 1.
+    cf : numpy.ndarray
+        Coherence factor ``|S|^2 / (M Q)``, 0 where ``M = 0`` or ``Q = 0``;
+        with apodization ``|S|^2 / (W Q)`` (:mod:`clbeam.imaging.apodization`).
+    s : numpy.ndarray
+        complex coherent sum ``S = Σ w p``.
+    q : numpy.ndarray
+        incoherent sum ``Q = Σ w |p|^2``.
+    m : numpy.ndarray
+        int32 count ``M`` of contributing channels.
+    w : numpy.ndarray or None
+        sum ``W = Σ w`` of the contributing channels' weights (apodized
+        sums only; ``None`` means ``W = M``).
+    """
+
+    intensity: np.ndarray | None = None
+    cf: np.ndarray | None = None
+    s: np.ndarray | None = None
+    q: np.ndarray | None = None
+    m: np.ndarray | None = None
+    w: np.ndarray | None = None
+
+    def coherence_denominator(self) -> np.ndarray:
+        """``W Q`` (``M Q`` unweighted): the CF denominator, float64, from the raw sums."""
+        require(self.q is not None and self.m is not None, OptionError,
+                "the CF denominator needs the raw sums: request the 'sums' output")
+        w = self.m if self.w is None else self.w
+        return np.asarray(w, dtype=np.float64) * np.asarray(self.q, dtype=np.float64)
+
+
+def check_outputs(outputs) -> frozenset[str]:
+    """Validate a collection of requested outputs."""
+    if isinstance(outputs, str):
+        outputs = [o.strip() for o in outputs.split(",") if o.strip()]
+    out = frozenset(outputs)
+    require(len(out) > 0, OptionError, "no outputs requested, expected some of " + ", ".join(OUTPUTS))
+    bad = sorted(out - set(OUTPUTS))
+    require(not bad, OptionError, f"output '{bad[0] if bad else ''}' is unknown, expected some of {', '.join(OUTPUTS)}")
+    return out
+
+
+def check_record_length(inp: BeamformInput, mode: InterpMode) -> None:
+    """Raise :class:`GridError` when the record is shorter than the mode's support."""
+    taps = mode.taps_before + mode.taps_after + 1
+    require(inp.n_samples >= taps, GridError,
+            f"the record has {inp.n_samples} samples, fewer than the {taps} taps of interpolation mode '{mode.name}'")
+
+
+def range_bases(inp: BeamformInput, grid: PolarGrid) -> np.ndarray:
+    """Sample position (float64) of the two-way path ``2 R`` for each range:
+    ``(2 R / c - t0) fs``."""
+    return (2.0 * grid.ranges_m / inp.sound_speed_m_s - inp.t0_s) * inp.sample_rate_hz
+
+
+def cell_windows(inp: BeamformInput, grid: PolarGrid, mode: InterpMode,
+                 range_window_m: np.ndarray | None = None) -> np.ndarray:
+    """First and end range index ``(n_angle, 2)`` of the cells worth computing.
+
+    A cell is skipped when it lies outside the caller's per-angle range
+    window (metres, ``(n_angle, 2)``) or when no channel's interpolation
+    support can lie inside the record: since ``|d(o)| <= |o|`` for every
+    offset ``o`` (triangle inequality), a range row whose base position is
+    farther than ``(|o_src| + max |o_n|) fs / c + 1`` samples from the record
+    cannot contribute.  Skipped cells get zeros, exactly what they would get
+    when computed.
+    """
+    reach = (np.linalg.norm(inp.source_offset_m) + np.max(np.linalg.norm(inp.element_offsets_m, axis=1), initial=0.0))
+    reach = reach * inp.samples_per_m + 2.0
+    n_a, n_r = grid.shape
+    win = np.zeros((n_a, 2), dtype=np.int32)
+    if inp.tables is None:
+        base = range_bases(inp, grid)
+        ok = (base + reach >= mode.taps_before) & (base - reach <= inp.n_samples - 1 - mode.taps_after)
+        if not ok.any():
+            return win
+        win[:, 0], win[:, 1] = int(np.argmax(ok)), int(n_r - np.argmax(ok[::-1]))
+    else:  # per angle: the ray-traced time grows with range along an angle
+        inp.check_tables(grid)
+        base = inp.cell_base_samples(grid)
+        with np.errstate(invalid="ignore"):
+            ok = (base + reach >= mode.taps_before) & (base - reach <= inp.n_samples - 1 - mode.taps_after)
+        any_ok = ok.any(axis=1)
+        win[:, 0] = np.where(any_ok, np.argmax(ok, axis=1), 0)
+        win[:, 1] = np.where(any_ok, n_r - np.argmax(ok[:, ::-1], axis=1), 0)
+    if range_window_m is not None:
+        user = user_windows(grid, range_window_m)
+        win[:, 0] = np.maximum(win[:, 0], user[:, 0])
+        win[:, 1] = np.minimum(win[:, 1], user[:, 1])
+    win[:, 1] = np.maximum(win[:, 1], win[:, 0])
+    return win
+
+
+def user_windows(grid: PolarGrid, range_window_m: np.ndarray) -> np.ndarray:
+    """First and end range index ``(n_angle, 2)`` of a per-angle range
+    interval ``(n_angle, 2)`` in metres (both ends included)."""
+    n_a = grid.shape[0]
+    rw = np.asarray(range_window_m, dtype=np.float64)
+    require(rw.shape == (n_a, 2), GridError, f"range window must be (n_angle, 2) = ({n_a}, 2), got {rw.shape}")
+    require(bool(np.all(~np.isnan(rw))), GridError, "range window has NaN values")
+    win = np.empty((n_a, 2), dtype=np.int32)
+    win[:, 0] = np.searchsorted(grid.ranges_m, rw[:, 0], side="left")
+    win[:, 1] = np.searchsorted(grid.ranges_m, rw[:, 1], side="right")
+    win[:, 1] = np.maximum(win[:, 1], win[:, 0])
+    return win
+
+
+def baseband(data: np.ndarray, carrier_hz: float, sample_rate_hz: float) -> np.ndarray:
+    """Remove the carrier: ``b[k] = p[k] exp(-2πj fc k / fs)`` (float64 phase)."""
+    require(carrier_hz > 0, OptionError, "the basebanded mode needs the band centre frequency (pulse_f0/pulse_f1), none is known")
+    k = np.arange(data.shape[-1], dtype=np.float64)
+    phase = np.mod(2 * np.pi * carrier_hz / sample_rate_hz * k, 2 * np.pi)
+    return data * np.exp(-1j * phase)
+
+
+def carrier_phase(carrier_hz: float, sample_rate_hz: float, k: np.ndarray) -> np.ndarray:
+    """Carrier phase (rad, in [0, 2π)) at integer sample ``k``, exact in float64
+    for any record length (``k`` is split so the product keeps its digits)."""
+    w = 2 * np.pi * carrier_hz / sample_rate_hz
+    k = np.asarray(k, dtype=np.int64)
+    hi, lo = np.divmod(k, 1 << 20)
+    return np.mod(np.mod(w * (1 << 20), 2 * np.pi) * hi + w * lo, 2 * np.pi)

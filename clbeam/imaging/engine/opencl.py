@@ -1,0 +1,447 @@
+"""OpenCL backend: device choice, program build and cache, buffers, tiling.
+
+One :class:`OpenCLEngine` holds a context, a command queue, the programs it
+has built (one per combination of mode, precision, outputs and sizes, built
+once) and its device buffers (reused while they are large enough).  Calls
+are serialised by a lock, so one engine may be shared by threads; a server
+wanting parallel devices holds one engine per device.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+from importlib import resources
+
+import numpy as np
+
+from clbeam.errors import DeviceError, GridError, OptionError, require
+from clbeam.model.grid import PolarGrid
+from clbeam.imaging.engine.common import (BeamformInput, InterpMode, Sums, baseband, carrier_phase, cell_windows, check_outputs,
+                     check_record_length, interp_mode, range_bases)
+
+log = logging.getLogger(__name__)
+
+#: cells per work-item (vector lanes) and work-items per group, by device type:
+#: CPU drivers vectorise explicit lanes well and want tiny groups; GPUs want
+#: one cell per work-item and full groups (clamped to the device limit)
+CPU_LAYOUT = (16, 1)
+GPU_LAYOUT = (1, 64)
+#: fraction of the device's global memory one tile of outputs may use
+TILE_MEMORY_FRACTION = 0.25
+
+
+def _cl():
+    try:
+        import pyopencl as cl
+    except ImportError as exc:  # pragma: no cover - pyopencl is a dependency
+        raise DeviceError(f"pyopencl is not importable ({exc}); install clbeam's dependencies") from None
+    return cl
+
+
+def list_devices() -> list:
+    """All OpenCL devices of all platforms, in platform order (empty when none)."""
+    cl = _cl()
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error:
+        return []
+    devices = []
+    for p in platforms:
+        try:
+            devices.extend(p.get_devices())
+        except cl.Error:
+            continue
+    return devices
+
+
+def device_label(dev) -> str:
+    """``"device name (platform name)"``."""
+    return f"{dev.name.strip()} ({dev.platform.name.strip()})"
+
+
+NO_OPENCL = ("no OpenCL device found; install an OpenCL driver (on Debian: apt-get install pocl-opencl-icd) "
+             "or use --backend reference")
+
+
+def choose_device(device=None):
+    """Pick an OpenCL device by index, by name substring, by ``CLBEAM_DEVICE``,
+    or the first one found."""
+    devices = list_devices()
+    require(len(devices) > 0, DeviceError, NO_OPENCL)
+    if device is None:
+        device = os.environ.get("CLBEAM_DEVICE")
+    if device is None or device == "":
+        return devices[0]
+    if isinstance(device, int) or (isinstance(device, str) and device.isdigit()):
+        i = int(device)
+        require(0 <= i < len(devices), DeviceError, f"OpenCL device index {i} out of range 0..{len(devices) - 1}")
+        return devices[i]
+    for d in devices:
+        if str(device).lower() in device_label(d).lower():
+            return d
+    raise DeviceError(f"no OpenCL device matches '{device}'; found: " + "; ".join(device_label(d) for d in devices))
+
+
+def kernel_source() -> str:
+    """The beamforming kernel with its headers inlined (avoids include paths)."""
+    root = resources.files("clbeam.kernels")
+    src = (root / "beamform.cl").read_text()
+    for header in ("vector.h", "interp.h"):
+        src = src.replace(f'#include "{header}"', (root / header).read_text())
+    return src
+
+
+def device_has_fp64(dev) -> bool:
+    """True when the device supports double precision (``cl_khr_fp64``)."""
+    if "cl_khr_fp64" in dev.extensions:
+        return True
+    try:  # OpenCL 1.2+ devices report double support here even without the extension string
+        return dev.double_fp_config != 0
+    except Exception:  # some drivers raise for a query on a device without doubles
+        return False
+
+
+class OpenCLEngine:
+    """Delay-and-sum on an OpenCL device (same interface as the reference).
+
+    Parameters
+    ----------
+    device : str or int, optional
+        Device index or name substring; default ``CLBEAM_DEVICE`` or the first.
+    precision : {"float32", "float64"}
+        Kernel arithmetic; float64 only on devices with ``cl_khr_fp64``.
+    max_tile_cells : int, optional
+        Cap on cells per launch (tiles over angle); default from device memory.
+    layout : (int, int), optional
+        Cells per work-item (1, 2, 4, 8 or 16 vector lanes) and work-items per
+        work-group; default by device type (:data:`CPU_LAYOUT`, :data:`GPU_LAYOUT`).
+    """
+
+    name = "opencl"
+
+    def __init__(self, device=None, precision: str = "float32", max_tile_cells: int | None = None,
+                 layout: tuple[int, int] | None = None):
+        cl = _cl()
+        require(precision in ("float32", "float64"), OptionError,
+                f"precision '{precision}' is unknown, expected 'float32' or 'float64'")
+        self.device = choose_device(device)
+        if precision == "float64":
+            require(device_has_fp64(self.device), DeviceError,
+                    f"{device_label(self.device)} has no double precision (cl_khr_fp64); use precision float32")
+        self.precision = precision
+        self.real = np.float64 if precision == "float64" else np.float32
+        self.ctx = cl.Context([self.device])
+        self.queue = cl.CommandQueue(self.ctx)
+        self._kernels: dict = {}
+        self._buffers: dict = {}
+        self._lock = threading.Lock()
+        self._fresnel_key = None
+        self._fresnel_value = float("inf")
+        self.max_tile_cells = max_tile_cells
+        # the expansion serves float32 speed; float64 is the accuracy mode: exact distances
+        self.fresnel = precision == "float32"
+        is_cpu = bool(self.device.type & cl.device_type.CPU)
+        self.vec, self.local = layout or (CPU_LAYOUT if is_cpu else GPU_LAYOUT)
+        require(self.vec in (1, 2, 4, 8, 16) and self.local >= 1, OptionError,
+                f"layout must be (lanes in 1, 2, 4, 8, 16; work-items >= 1), got {layout!r}")
+        log.info("OpenCL device: %s, %s", device_label(self.device), precision)
+
+    @property
+    def label(self) -> str:
+        """Device name and platform."""
+        return device_label(self.device)
+
+    def release(self) -> None:
+        """Free the device buffers (the compiled programs are kept)."""
+        with self._lock:
+            for buf in self._buffers.values():
+                buf.release()
+            self._buffers.clear()
+
+    def _fresnel_range(self, offsets_m: np.ndarray, samples_per_m: float) -> float:
+        key = (np.round(offsets_m, 6).tobytes(), round(samples_per_m, 9), self.fresnel)
+        if self._fresnel_key != key:
+            self._fresnel_key = key
+            self._fresnel_value = fresnel_min_range_m(offsets_m, samples_per_m, self.fresnel)
+        return self._fresnel_value
+
+    # -- program cache ----------------------------------------------------
+    def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int, apodize: bool = False,
+                table: bool = False):
+        key = (mode.name, tuple(sorted(outs)), n_samples, n_range, self.vec, apodize, table)
+        k = self._kernels.get(key)
+        if k is None:
+            cl = _cl()
+            opts = [
+                f"-DREAL_T={'double' if self.precision == 'float64' else 'float'}",
+                f"-DREAL_IS_DOUBLE={int(self.precision == 'float64')}",
+                f"-DINTERP={mode.kernel_id}",
+                f"-DLANCZOS_A={max(mode.lanczos_a, 1)}",
+                f"-DBASEBAND={int(mode.baseband)}",
+                f"-DN_SAMPLES={n_samples}",
+                f"-DN_RANGE={n_range}",
+                f"-DWANT_INTENSITY={int('intensity' in outs)}",
+                f"-DWANT_CF={int('cf' in outs)}",
+                f"-DWANT_SUMS={int('sums' in outs)}",
+                f"-DVEC={self.vec}",
+                f"-DAPODIZE={int(apodize)}",
+                f"-DTRAVEL_TABLE={int(table)}",
+            ]
+            try:
+                prg = cl.Program(self.ctx, kernel_source()).build(options=opts)
+            except cl.Error as exc:
+                errors = [ln for ln in str(exc).splitlines() if "error" in ln.lower()]
+                log.debug("kernel build log: %s", exc)
+                raise DeviceError(f"kernel build failed on {self.label}: {(errors or [str(exc)])[-1].strip()}") from None
+            k = prg.beamform
+            self._kernels[key] = k
+        return k
+
+    def _buffer(self, name: str, nbytes: int):
+        cl = _cl()
+        nbytes = max(int(nbytes), 16)
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < nbytes:
+            if buf is not None:
+                buf.release()
+            try:
+                buf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, nbytes)
+            except cl.Error as exc:
+                raise DeviceError(f"cannot allocate {nbytes / 2**20:.1f} MiB on {self.label}: {exc}") from None
+            self._buffers[name] = buf
+        return buf
+
+    def _upload(self, name: str, array: np.ndarray):
+        cl = _cl()
+        a = np.ascontiguousarray(array)
+        buf = self._buffer(name, a.nbytes)
+        cl.enqueue_copy(self.queue, buf, a)
+        return buf
+
+    def _tile_angles(self, grid: PolarGrid, bytes_per_cell: int) -> int:
+        n_a, n_r = grid.shape
+        if self.max_tile_cells is not None:
+            cells = self.max_tile_cells
+        else:
+            limit = min(self.device.max_mem_alloc_size, TILE_MEMORY_FRACTION * self.device.global_mem_size)
+            cells = int(limit // max(bytes_per_cell, 1))
+        rows = max(1, min(n_a, cells // n_r))
+        require(cells >= n_r, GridError,
+                f"one angle row of {n_r} ranges does not fit the device memory of {self.label}; use fewer ranges")
+        return rows
+
+    # -- imaging ----------------------------------------------------------
+    def beamform(self, inp: BeamformInput, grid: PolarGrid, *, interp: str = "linear",
+                 outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None) -> Sums:
+        """Image one ping on the device (see :meth:`ReferenceEngine.beamform`)."""
+        mode = interp_mode(interp)
+        check_record_length(inp, mode)
+        require(mode.kernel_id >= 0, OptionError,
+                f"interpolation mode '{mode.name}' exists in the reference backend only")
+        outs = check_outputs(outputs)
+        with self._lock:
+            return self._beamform(inp, grid, mode, outs, range_window_m)
+
+    def _beamform(self, inp, grid, mode, outs, range_window_m) -> Sums:
+        cl = _cl()
+        real = self.real
+        n_a, n_r = grid.shape
+        n_chan, n_samp = inp.n_channels, inp.n_samples
+        require(2 * n_chan * (n_samp + 1) < 2**31, GridError,
+                f"{n_chan} channels x {n_samp} samples exceed the kernel's 32-bit indexing; image fewer samples")
+        data = np.asarray(inp.data)
+        if mode.baseband:
+            data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
+        inter = np.empty((n_chan, n_samp, 2), dtype=real)
+        inter[..., 0] = data.real
+        inter[..., 1] = data.imag
+
+        o = np.asarray(inp.element_offsets_m, dtype=np.float64)
+        chan = np.zeros((n_chan, 4), dtype=real)
+        chan[:, 0], chan[:, 1], chan[:, 2], chan[:, 3] = o[:, 1], o[:, 2], np.sum(o * o, axis=1), o[:, 0] ** 2
+        so = np.asarray(inp.source_offset_m, dtype=np.float64)
+
+        th = np.deg2rad(grid.angles_deg)
+        angle_tab = np.stack([np.sin(th), np.cos(th)], axis=1).astype(real)
+        base_int, base_frac, base_phase = split_samples(range_bases(inp, grid), inp, real)
+        window = cell_windows(inp, grid, mode, range_window_m)
+
+        apodize = inp.weights is not None
+        table = inp.tables is not None
+        if table:
+            inp.check_tables(grid)
+            cell_tabs = cell_tables(inp, grid, real)
+        kernel = self._kernel(mode, outs, n_samp, n_r, apodize, table)
+        b_weights = self._upload("weights", np.asarray(inp.weights if apodize else np.ones(1), dtype=real))
+        b_data = self._upload("data", inter)
+        b_chan = self._upload("chan", chan)
+        b_range = self._upload("range", grid.ranges_m.astype(real))
+        b_bint = self._upload("base_int", base_int)
+        b_bfrac = self._upload("base_frac", base_frac)
+        b_bphase = self._upload("base_phase", base_phase)
+
+        itemsize = np.dtype(real).itemsize
+        per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + (3 + apodize) * ("sums" in outs) + 5 * table)
+                    + 4 * ("sums" in outs) + 4 * table)
+        wg_max = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device)
+        local = max(1, min(self.local, wg_max))
+        lanes = self.vec * local  # angles per tile
+        rows = max(lanes, self._tile_angles(grid, per_cell) // lanes * lanes)
+        res = Sums()
+        full = {}
+        if "intensity" in outs:
+            full["intensity"] = res.intensity = np.empty((n_a, n_r), dtype=real)
+        if "cf" in outs:
+            full["cf"] = res.cf = np.empty((n_a, n_r), dtype=real)
+        if "sums" in outs:
+            full["s"] = np.empty((2, n_a, n_r), dtype=real)
+            full["q"] = res.q = np.empty((n_a, n_r), dtype=real)
+            full["m"] = res.m = np.empty((n_a, n_r), dtype=np.int32)
+            if apodize:
+                full["w"] = res.w = np.empty((n_a, n_r), dtype=real)
+        planes = {"intensity": 1, "cf": 1, "s": 2, "q": 1, "m": 1, "w": 1}
+        bufs = {name: self._buffer("out_" + name, planes[name] * rows * n_r * (4 if name == "m" else itemsize)
+                                   if name in full else 16) for name in planes}
+        for a0 in range(0, n_a, rows):
+            na = min(rows, n_a - a0)
+            na_pad = -(-na // lanes) * lanes
+            tab = np.zeros((4, na_pad), dtype=real)
+            tab[0, :na], tab[1, :na] = angle_tab[a0:a0 + na, 0], angle_tab[a0:a0 + na, 1]
+            win = np.zeros((na_pad, 2), dtype=np.int32)
+            win[:na] = window[a0:a0 + na]
+            tiles = launch_tiles(win, lanes)
+            tab_bufs = [self._buffer("tab_" + k, 16) for k in TABLE_NAMES]
+            if table:
+                tab_bufs = []
+                for k in TABLE_NAMES:
+                    a = cell_tabs[k]
+                    t = np.zeros((n_r, na_pad), dtype=a.dtype)
+                    t[:, :na] = a[a0:a0 + na].T
+                    if k == "int":
+                        t[:, na:] = UNREACHABLE_TAP
+                    tab_bufs.append(self._upload("tab_" + k, t))
+            for name, arr in full.items():
+                cl.enqueue_fill_buffer(self.queue, bufs[name], np.zeros(1, dtype=arr.dtype), 0,
+                                       planes[name] * na_pad * n_r * arr.itemsize)
+            if len(tiles):
+                kernel(self.queue, (len(tiles) * local,), (local,),
+                       b_data, b_chan, np.int32(n_chan), b_weights, self._upload("tiles", tiles),
+                       self._upload("angle_sin", tab[0]), self._upload("angle_cos", tab[1]),
+                       self._upload("win_first", np.ascontiguousarray(win[:, 0])),
+                       self._upload("win_end", np.ascontiguousarray(win[:, 1])),
+                       b_range, b_bint, b_bfrac, b_bphase,
+                       real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
+                       real(inp.samples_per_m), real(self._fresnel_range(o, inp.samples_per_m)),
+                       real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
+                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"], bufs["w"], np.int32(na_pad),
+                       *tab_bufs)
+            for name, arr in full.items():
+                if name == "s":
+                    host = np.empty((2, na_pad, n_r), dtype=real)
+                    cl.enqueue_copy(self.queue, host, bufs[name], is_blocking=True)
+                    arr[:, a0:a0 + na] = host[:, :na]
+                else:
+                    cl.enqueue_copy(self.queue, arr[a0:a0 + na], bufs[name], is_blocking=True)
+        self.queue.finish()
+        if "sums" in outs:
+            res.s = full["s"][0] + 1j * full["s"][1]
+        return res
+
+
+#: names of the per-cell travel-time tables, in the kernel's argument order
+TABLE_NAMES = ("int", "frac", "phase", "sin", "cos", "rho")
+#: integer tap of a cell no ray reaches: far before any record, so never inside
+UNREACHABLE_TAP = -(1 << 30)
+#: wavefront radii (m) are clipped here for the float32 kernel
+MAX_WAVEFRONT_RADIUS_M = 1e8
+
+
+def split_samples(base: np.ndarray, inp: BeamformInput, real) -> tuple:
+    """Sample positions (float64) split into the integer sample (int32), the
+    fraction and the carrier phase at the integer sample (``real``): float32
+    keeps sub-sample precision at any range this way."""
+    k = np.floor(base)
+    require(bool(np.all(np.abs(k) < 2**31 - 2**20)), GridError,
+            "grid ranges reach beyond 2^31 samples of the record; reduce the maximum range")
+    phase = carrier_phase(inp.centre_frequency_hz, inp.sample_rate_hz, k.astype(np.int64)).astype(real)
+    return k.astype(np.int32), (base - k).astype(real), phase
+
+
+def cell_tables(inp: BeamformInput, grid: PolarGrid, real=np.float32) -> dict:
+    """The kernel's per-cell tables ``(n_angle, n_range)`` from ``inp.tables``:
+    the centre's two-way sample position split into an integer and a
+    fraction (float64 on the host), its carrier phase, the launch direction
+    and the wavefront radius; unreachable cells get :data:`UNREACHABLE_TAP`
+    and finite dummies."""
+    tab = inp.tables
+    base = inp.cell_base_samples(grid)
+    ok = np.isfinite(base) & np.isfinite(tab.wavefront_radius_m) & np.isfinite(tab.launch_sin) & np.isfinite(tab.launch_cos)
+    k, frac, phase = split_samples(np.where(ok, base, 0.0), inp, real)
+    th = np.deg2rad(grid.angles_deg)[:, None]
+    return {
+        "int": np.where(ok, k, UNREACHABLE_TAP).astype(np.int32),
+        "frac": np.where(ok, frac, 0.0).astype(real),
+        "phase": phase,
+        "sin": np.where(ok, tab.launch_sin, np.sin(th)).astype(real),
+        "cos": np.where(ok, tab.launch_cos, np.cos(th)).astype(real),
+        # near grazing rays the radius can reach 1e11 m, whose square overflows
+        # float32; beyond 1e8 m the curvature term is below 1e-8 m anyway
+        "rho": np.where(ok, np.minimum(tab.wavefront_radius_m, MAX_WAVEFRONT_RADIUS_M), grid.ranges_m[None, :]).astype(real),
+    }
+
+
+def launch_tiles(window: np.ndarray, local_angles: int) -> np.ndarray:
+    """Work-group tiles ``(n_tiles, 2)`` = (first angle, range row) covering
+    every cell inside ``window`` (``(n_angle_padded, 2)`` first/end range).
+
+    A tile is ``local_angles`` consecutive angles at one range row; for each
+    block of angles the rows from the smallest first to the largest end are
+    launched, the kernel zeroes the cells of a tile outside their own window.
+    Tiles are ordered by range row, then angle: the cells of one range row
+    read each channel's record within a few dozen samples of one another,
+    so consecutive work-groups find their samples in cache (2.2-2.5x faster
+    for the low-order modes on a CPU than angle-block order, which streams
+    the whole record once per block of angles; bench/kernel_profile.py).
+    """
+    n = window.shape[0] // local_angles
+    blocks = window.reshape(n, local_angles, 2)
+    nonempty = blocks[:, :, 1] > blocks[:, :, 0]
+    lo = np.where(nonempty, blocks[:, :, 0], np.iinfo(np.int32).max).min(axis=1)
+    hi = np.where(nonempty, blocks[:, :, 1], 0).max(axis=1)
+    counts = np.maximum(hi - lo, 0)
+    first = np.repeat(np.arange(n) * local_angles, counts)
+    rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi) if b > a] or [np.zeros(0, dtype=np.int64)])
+    tiles = np.stack([first, rows], axis=1).astype(np.int32)
+    return tiles[np.lexsort((tiles[:, 0], tiles[:, 1]))]
+
+
+#: truncation error allowed for the Fresnel expansion of the element delays (samples)
+FRESNEL_TOLERANCE_SAMPLES = 1e-5
+
+
+def fresnel_min_range_m(offsets_m: np.ndarray, samples_per_m: float, enabled: bool = True) -> float:
+    """Smallest range (m) from which the third-order expansion of every
+    element's ``|R u - o| - R`` is within :data:`FRESNEL_TOLERANCE_SAMPLES`.
+
+    The error is measured, not bounded: for ranges on a geometric ladder the
+    exact and expanded delays of all elements are compared over all angles
+    (it falls like ``|o|^4 / R^3``); ``inf`` disables the expansion.
+    """
+    if not enabled or len(offsets_m) == 0:
+        return float("inf")
+    o = np.asarray(offsets_m, dtype=np.float64)
+    th = np.deg2rad(np.linspace(-90, 90, 181))
+    u = np.stack([np.sin(th), np.cos(th)], axis=1)
+    p = u @ o[:, 1:3].T                        # (angle, element)
+    q = np.sum(o * o, axis=1)[None, :]
+    tol_m = FRESNEL_TOLERANCE_SAMPLES / samples_per_m
+    reach = max(float(np.sqrt(q.max())), 1e-3)
+    for r in reach * 2.0 ** np.arange(1, 40, 0.25):
+        exact = np.sqrt((r * u[:, :1] - o[None, :, 1]) ** 2 + (r * u[:, 1:] - o[None, :, 2]) ** 2
+                        + o[None, :, 0] ** 2) - r
+        approx = -p + (q - p * p) / (2 * r) * (1 + p / r)
+        if np.max(np.abs(exact - approx)) < tol_m:
+            return float(r)
+    return float("inf")

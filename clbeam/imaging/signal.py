@@ -1,0 +1,142 @@
+"""Transmit replica, pulse compression with analytic signal, resampling.
+
+Holland et al. (2024) eq. 1 sums ``p_n^H``: the match-filtered element time
+series turned into analytic signals.  Both steps are one FFT pass here:
+multiply the channel spectrum by the conjugate replica spectrum, keep the
+positive frequencies and double them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft
+
+from clbeam.errors import OptionError, require
+
+
+def lfm_replica(*, f0_hz: float, f1_hz: float, duration_s: float, sample_rate_hz: float) -> np.ndarray:
+    """Linear-FM transmit replica (unit amplitude, no taper).
+
+    ``x(t) = cos(2π (f0 t + (f1 - f0) t² / (2 T)))`` for ``0 <= t < T``,
+    sampled at ``t = k / fs``.
+
+    Parameters
+    ----------
+    f0_hz, f1_hz : float
+        Start and end frequencies (Hz).
+    duration_s : float
+        Pulse length ``T`` (s).
+    sample_rate_hz : float
+        Sample rate ``fs`` (Hz).
+    """
+    require(duration_s > 0 and np.isfinite(duration_s), OptionError, f"pulse_duration must be > 0 s, got {duration_s!r}")
+    require(sample_rate_hz > 0, OptionError, f"sample_rate must be > 0 Hz, got {sample_rate_hz!r}")
+    require(0 <= f0_hz < sample_rate_hz / 2 and 0 <= f1_hz < sample_rate_hz / 2, OptionError,
+            f"pulse band {f0_hz:g}-{f1_hz:g} Hz must lie below the Nyquist frequency {sample_rate_hz / 2:g} Hz")
+    n = max(int(round(duration_s * sample_rate_hz)), 1)
+    t = np.arange(n) / sample_rate_hz
+    return np.cos(2 * np.pi * (f0_hz * t + 0.5 * (f1_hz - f0_hz) / duration_s * t * t))
+
+
+def compress_analytic(samples: np.ndarray, replica: np.ndarray) -> np.ndarray:
+    """Pulse compression and analytic signal of real channels in one FFT pass.
+
+    ``y[k] = Σ_m x[k + m] r[m] / Σ_m r[m]²`` (the cross-correlation of the
+    channel with the replica, normalised so that an echo ``a · r`` starting at
+    sample ``k0`` compresses to a peak of real part ``a`` at ``k0``), returned
+    as its analytic signal ``y + j H{y}``.
+
+    Non-finite input samples are replaced by zero and every output sample
+    whose correlation window touched one is set to NaN, so the imager skips
+    the samples they corrupted; outside that mask the result is that of the
+    zeroed record (the Hilbert transform's tail spreads a small, decaying
+    difference beyond it).
+
+    Parameters
+    ----------
+    samples : numpy.ndarray
+        Real samples, ``(..., n_sample)``.
+    replica : numpy.ndarray
+        Real transmit replica at the same sample rate.
+
+    Returns
+    -------
+    numpy.ndarray
+        complex128, same shape as ``samples``.
+    """
+    x = np.asarray(samples, dtype=np.float64)
+    r = np.asarray(replica, dtype=np.float64)
+    n, m = x.shape[-1], r.size
+    energy = float(np.dot(r, r))
+    require(energy > 0, OptionError, "transmit replica has zero energy")
+    bad = ~np.isfinite(x)
+    any_bad = bool(bad.any())
+    if any_bad:
+        x = np.where(bad, 0.0, x)
+    nfft = scipy.fft.next_fast_len(n + m - 1)
+    # real-input FFT of the channels; the analytic spectrum is its positive
+    # half (DC and Nyquist once, the rest doubled) with zeros above
+    half = scipy.fft.rfft(x, nfft, axis=-1, workers=-1) * np.conj(scipy.fft.rfft(r, nfft)) / energy
+    spec = np.zeros(x.shape[:-1] + (nfft,), dtype=np.complex128)
+    spec[..., :half.shape[-1]] = half * analytic_weights(nfft)[:half.shape[-1]]
+    y = scipy.fft.ifft(spec, axis=-1, workers=-1)[..., :n]
+    if any_bad:
+        # y[k] uses x[k .. k+m-1]: it is corrupted when any of those was bad.
+        hits = np.cumsum(np.concatenate([np.zeros(bad.shape[:-1] + (1,)), bad, np.zeros(bad.shape[:-1] + (m,))], axis=-1), axis=-1)
+        window = hits[..., m:m + n] - hits[..., :n]
+        y[window > 0] = np.nan + 1j * np.nan
+    return y
+
+
+def analytic_weights(nfft: int) -> np.ndarray:
+    """FFT weights turning a real signal's spectrum into its analytic signal's:
+    1 at DC (and Nyquist for even ``nfft``), 2 at positive, 0 at negative frequencies."""
+    w = np.zeros(nfft)
+    w[0] = 1.0
+    if nfft % 2 == 0:
+        w[1:nfft // 2] = 2.0
+        w[nfft // 2] = 1.0
+    else:
+        w[1:(nfft + 1) // 2] = 2.0
+    return w
+
+
+def upsample_analytic(signal: np.ndarray, factor: int) -> np.ndarray:
+    """Band-limited (FFT) upsampling of analytic channels by an integer factor.
+
+    The spectrum is zero-padded at the negative-frequency end, which is exact
+    for an analytic signal whose band lies inside ``(0, fs/2)``.  Output sample
+    ``k`` is at input time ``k / factor`` (samples).
+    """
+    require(int(factor) == factor and factor >= 1, OptionError, f"upsampling factor must be a positive integer, got {factor!r}")
+    factor = int(factor)
+    if factor == 1:
+        return np.asarray(signal)
+    x = np.asarray(signal, dtype=np.complex128)
+    n = x.shape[-1]
+    spec = scipy.fft.fft(np.nan_to_num(x), axis=-1)
+    half = (n + 1) // 2
+    padded = np.zeros(x.shape[:-1] + (n * factor,), dtype=np.complex128)
+    padded[..., :half] = spec[..., :half]
+    padded[..., n * factor - (n - half):] = spec[..., half:]
+    out = scipy.fft.ifft(padded, axis=-1) * factor
+    bad = ~np.isfinite(x)
+    if bad.any():
+        idx = np.nonzero(bad)
+        for offset in range(-factor + 1, factor):
+            k = np.clip(idx[-1] * factor + offset, 0, n * factor - 1)
+            out[idx[:-1] + (k,)] = np.nan
+    return out
+
+
+def apply_channel_response(samples: np.ndarray, gain_db: np.ndarray, phase_deg: np.ndarray) -> np.ndarray:
+    """Real channels ``(channel, sample)`` as recorded through a channel
+    response of gain ``gain_db`` (dB) and phase ``phase_deg`` (degree) per
+    channel: ``10^(g/20) Re{a(t) e^(j φ)}`` with ``a`` the analytic signal,
+    so the analytic signal of the result is ``10^(g/20) e^(j φ) a`` (what
+    :func:`clbeam.imaging.apodization.calibration_factors` removes)."""
+    x = np.asarray(samples, dtype=np.float64)
+    n = x.shape[-1]
+    a = np.fft.ifft(np.fft.fft(x, axis=-1) * analytic_weights(n), axis=-1)
+    g = 10.0 ** (np.asarray(gain_db, dtype=np.float64) / 20.0) * np.exp(1j * np.deg2rad(phase_deg))
+    return (g[:, None] * a).real

@@ -1,0 +1,149 @@
+"""Frames, motion correction and the polar image grid (SPEC §2).
+
+Vessel frame: ``x`` forward, ``y`` to starboard, ``z`` down, origin at the
+array reference point.  The earth frame used for imaging has the same origin
+and axes with ``z`` along gravity: roll rotates the array and the source about
+``x`` (positive roll = starboard side down) and heave shifts them along ``z``
+(positive heave = vessel up, so positions move to smaller ``z``).  Pitch is
+ignored: the image is the 2-D cross-track plane ``x = 0``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from clbeam.errors import GeometryError, GridError, require
+
+
+def roll_matrix(roll_deg: float) -> np.ndarray:
+    """Rotation about ``x`` taking vessel-frame vectors to the earth frame.
+
+    Parameters
+    ----------
+    roll_deg : float
+        Roll angle in degrees, positive when the starboard side is down.
+
+    Returns
+    -------
+    numpy.ndarray
+        3×3 matrix ``R`` with ``earth = R @ vessel``; a starboard point
+        ``(0, 1, 0)`` goes to ``(0, cos φ, sin φ)``, i.e. down for ``φ > 0``.
+    """
+    phi = np.deg2rad(roll_deg)
+    c, s = np.cos(phi), np.sin(phi)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def to_earth_frame(positions_m: np.ndarray, *, roll_deg: float = 0.0,
+                   heave_m: float = 0.0) -> np.ndarray:
+    """Vessel-frame positions (``(..., 3)`` as ``x, y, z`` in metres) to the earth frame.
+
+    Roll is applied about the frame origin (the array reference point), then
+    heave (metres, positive up) is subtracted from ``z``.
+    """
+    pos = np.asarray(positions_m, dtype=np.float64)
+    out = pos @ roll_matrix(roll_deg).T
+    out[..., 2] -= heave_m
+    return out
+
+
+#: largest grid :meth:`PolarGrid.regular` builds (the paper's grid has 8.8e6 cells)
+MAX_GRID_CELLS = 2e9
+
+
+@dataclass(frozen=True)
+class PolarGrid:
+    """A polar image grid in the cross-track plane (SPEC §2).
+
+    Cell ``(i, j)`` sits at angle ``angles_deg[i]`` from nadir (positive to
+    starboard) and range ``ranges_m[j]`` from ``centre_yz_m``:
+    ``y = yc + R sin θ``, ``z = zc + R cos θ``.
+
+    Attributes
+    ----------
+    ranges_m : numpy.ndarray
+        Ranges in metres, increasing, ``>= 0``.
+    angles_deg : numpy.ndarray
+        Angles in degrees from nadir, increasing, within ``[-90, 90]``.
+    centre_yz_m : tuple of float or None
+        Centre in the earth frame (metres); ``None`` means the source position.
+    """
+
+    ranges_m: np.ndarray
+    angles_deg: np.ndarray
+    centre_yz_m: tuple[float, float] | None = None
+
+    def __post_init__(self):
+        r = np.ascontiguousarray(self.ranges_m, dtype=np.float64)
+        a = np.ascontiguousarray(self.angles_deg, dtype=np.float64)
+        require(r.ndim == 1 and r.size > 0, GridError, f"grid ranges must be a non-empty 1-D array, got shape {r.shape}")
+        require(a.ndim == 1 and a.size > 0, GridError, f"grid angles must be a non-empty 1-D array, got shape {a.shape}")
+        require(bool(np.all(np.isfinite(r))) and bool(np.all(np.isfinite(a))), GridError, "grid ranges and angles must be finite")
+        require(r[0] >= 0, GridError, f"grid ranges must be >= 0 m, got minimum {r.min():g} m")
+        require(bool(np.all(np.diff(r) > 0)), GridError, "grid ranges must be strictly increasing")
+        require(bool(np.all(np.diff(a) > 0)), GridError, "grid angles must be strictly increasing")
+        require(a[0] >= -90 and a[-1] <= 90, GridError, f"grid angles must lie within [-90, 90] degrees, got [{a[0]:g}, {a[-1]:g}]")
+        if self.centre_yz_m is not None:
+            c = tuple(float(v) for v in self.centre_yz_m)
+            require(len(c) == 2 and all(np.isfinite(c)), GridError, f"grid centre must be two finite numbers (y, z) in m, got {self.centre_yz_m!r}")
+            object.__setattr__(self, "centre_yz_m", c)
+        r.setflags(write=False)
+        a.setflags(write=False)
+        object.__setattr__(self, "ranges_m", r)
+        object.__setattr__(self, "angles_deg", a)
+
+    @classmethod
+    def regular(cls, *, range_res_m: float = 0.2, angle_res_deg: float = 0.1,
+                max_range_m: float = 1100.0, min_range_m: float = 0.0,
+                angles_deg: tuple[float, float] = (-80.0, 80.0),
+                centre_yz_m: tuple[float, float] | None = None) -> "PolarGrid":
+        """A regular grid: ``min_range_m..max_range_m`` by ``range_res_m`` and
+        ``angles_deg[0]..angles_deg[1]`` by ``angle_res_deg`` (both ends included).
+
+        Defaults are the paper's grid (0.2 m, 0.1°) over 0–1100 m and ±80°.
+        """
+        require(np.isfinite(range_res_m) and range_res_m > 0, GridError, f"range resolution must be > 0 m, got {range_res_m!r}")
+        require(np.isfinite(angle_res_deg) and angle_res_deg > 0, GridError, f"angle resolution must be > 0 degrees, got {angle_res_deg!r}")
+        require(np.isfinite(max_range_m) and max_range_m > min_range_m >= 0, GridError,
+                f"range window must satisfy 0 <= min < max, got min {min_range_m!r} m, max {max_range_m!r} m")
+        a0, a1 = (float(v) for v in angles_deg)
+        require(a1 > a0, GridError, f"angle window must satisfy min < max, got [{a0:g}, {a1:g}] degrees")
+        n_r = int(np.floor((max_range_m - min_range_m) / range_res_m + 1e-9)) + 1
+        n_a = int(np.floor((a1 - a0) / angle_res_deg + 1e-9)) + 1
+        require(n_r * n_a <= MAX_GRID_CELLS, GridError,
+                f"a grid of {n_a} angles x {n_r} ranges ({n_a * n_r:.3g} cells) exceeds {MAX_GRID_CELLS:.0e} cells; "
+                "use coarser steps or a smaller window")
+        ranges = min_range_m + range_res_m * np.arange(n_r)
+        angles = a0 + angle_res_deg * np.arange(n_a)
+        return cls(ranges, angles, centre_yz_m)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(n_angle, n_range)``: the layout of every image array."""
+        return (self.angles_deg.size, self.ranges_m.size)
+
+    @property
+    def n_cells(self) -> int:
+        """Number of cells."""
+        return self.angles_deg.size * self.ranges_m.size
+
+    def centre(self, source_yz_m: tuple[float, float]) -> np.ndarray:
+        """Grid centre ``(y, z)`` in metres, the source's when none was given."""
+        if self.centre_yz_m is None:
+            return np.asarray(source_yz_m, dtype=np.float64)
+        return np.asarray(self.centre_yz_m, dtype=np.float64)
+
+    def cell_yz(self, source_yz_m: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+        """Earth-frame ``y`` and ``z`` (metres) of every cell, each ``(n_angle, n_range)``."""
+        c = self.centre(source_yz_m)
+        th = np.deg2rad(self.angles_deg)[:, None]
+        return c[0] + self.ranges_m[None, :] * np.sin(th), c[1] + self.ranges_m[None, :] * np.cos(th)
+
+
+def check_positions(name: str, positions_m: np.ndarray) -> None:
+    """Raise :class:`GeometryError` unless ``positions_m`` is a finite ``(..., 3)`` array."""
+    p = np.asarray(positions_m)
+    require(p.shape[-1:] == (3,), GeometryError, f"{name} must have 3 coordinates (x, y, z) per point, got shape {p.shape}")
+    require(bool(np.all(np.isfinite(p))), GeometryError, f"{name} has non-finite coordinates")

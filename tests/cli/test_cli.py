@@ -1,0 +1,96 @@
+"""The clbeam command (SPEC §8): contract names, outputs, one-line errors."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from clbeam.cli.main import main
+from clbeam.io.images import read_peaks_csv
+from scenes import dataset
+
+TARGETS = [(40 + 5 * i, 10.0 * i) for i in range(3)]  # (range m, angle deg) of dataset()'s pings
+
+
+@pytest.fixture(scope="module")
+def ping_file(tmp_path_factory):
+    ds, _ = dataset()
+    path = tmp_path_factory.mktemp("cli") / "pings.nc"
+    ds.to_netcdf(path)  # written by plain xarray, as another program would
+    return path
+
+
+def test_image_writes_the_spec_variables_and_finds_each_scatterer(ping_file, tmp_path):
+    out, peaks = tmp_path / "img.nc", tmp_path / "peaks.csv"
+    rc = main(["image", str(ping_file), "-o", str(out), "--peaks", str(peaks), "--max-range", "55",
+               "--min-range", "30", "--angles", "-5", "25", "--interp", "cubic", "-q"])
+    assert rc == 0
+    ds = xr.open_dataset(out)
+    for v in ("intensity", "cf"):
+        assert ds[v].dims == ("ping", "angle", "range")
+    assert ds["range"].attrs["units"] == "m" and ds["angle"].attrs["units"] == "degree"
+    np.testing.assert_allclose(ds["range"].values[[0, -1]], [30, 55])
+    for i, (r, a) in enumerate(TARGETS):
+        inten = ds["intensity"].isel(ping=i)
+        best = inten.where(inten == inten.max(), drop=True)
+        assert float(best["range"].values[0]) == pytest.approx(r, abs=1e-6)
+        assert float(best["angle"].values[0]) == pytest.approx(a, abs=0.1 + 1e-6)
+        assert float(ds["cf"].isel(ping=i).sel(range=r, angle=a, method="nearest")) > 0.99
+    rows = read_peaks_csv(peaks)
+    assert {"ping", "range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db", "ship_latitude_deg"} <= set(rows[0])
+    ds.close()
+
+
+def test_peaks_from_an_image_file_equal_those_written_while_imaging(ping_file, tmp_path):
+    out, p1, p2 = tmp_path / "img.zarr", tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main(["image", str(ping_file), "-o", str(out), "--peaks", str(p1), "--max-range", "50",
+                 "--angles", "-20", "30", "--angle-res", "0.5", "-q"]) == 0
+    assert main(["peaks", str(out), "-o", str(p2), "-q"]) == 0
+    a, b = read_peaks_csv(p1), read_peaks_csv(p2)
+    assert len(a) == len(b) > 0
+    key = lambda r: (r["ping"], r["angle_deg"], r["range_m"])  # noqa: E731
+    for ra, rb in zip(sorted(a, key=key), sorted(b, key=key)):
+        assert key(ra) == key(rb)
+        assert ra["cf"] == pytest.approx(rb["cf"], abs=1e-6)  # the file stores CF as float32
+
+
+def test_reference_backend_gives_the_same_image(ping_file, tmp_path):
+    args = ["--max-range", "50", "--min-range", "35", "--angles", "-5", "5", "--interp", "linear", "-q"]
+    assert main(["image", str(ping_file), "-o", str(tmp_path / "a.nc"), *args]) == 0
+    assert main(["image", str(ping_file), "-o", str(tmp_path / "b.nc"), "--backend", "reference", *args]) == 0
+    a, b = xr.open_dataset(tmp_path / "a.nc"), xr.open_dataset(tmp_path / "b.nc")
+    rel = float(np.linalg.norm(a["intensity"] - b["intensity"]) / np.linalg.norm(b["intensity"]))
+    assert rel < 1e-4  # float32 kernel against float64 (see test_engine's bound)
+    a.close(), b.close()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["image", "missing.nc", "-o", "x.nc"], "missing.nc: no such file"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--range-res", "0"], "range resolution must be > 0"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--outputs", "intensity,colour"], "output 'colour' is unknown"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--interp", "exact"], "reference backend only"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--device", "no-such-gpu"], "no OpenCL device matches"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--sound-speed", "900"], "within 1300-1700"),
+    (["peaks", "{pings}", "-o", "{tmp}/p.csv"], "not a clbeam image file"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--threshold", "2"], "threshold must be within 0-1"),
+    (["image", "{pings}", "-o", "{pings}"], "is the input file"),
+    (["image", "{pings}", "-o", "{tmp}"], "is an existing folder"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--range-res", "1e-7"], "exceeds 2e+09 cells"),
+])
+def test_bad_input_exits_2_with_one_line(ping_file, tmp_path, capsys, argv, message):
+    argv = [a.format(pings=ping_file, tmp=tmp_path) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("clbeam: error:") and message in err and "\n" not in err
+
+
+def test_installed_command_runs_devices_and_help():
+    r = subprocess.run([sys.executable, "-m", "clbeam.cli.main", "devices"], capture_output=True, text=True)
+    assert r.returncode == 0 and "platform:" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "clbeam.cli.main", "image", "--help"], capture_output=True, text=True)
+    assert r.returncode == 0
+    for opt in ("--range-res", "--angle-res", "--max-range", "--angles", "--interp", "--outputs", "--backend", "--device"):
+        assert opt in r.stdout
+    assert "{nearest,linear" in r.stdout  # the modes as a choice list

@@ -1,0 +1,44 @@
+"""The benchmark's measures against closed forms, and one tiny run."""
+
+import numpy as np
+import pytest
+
+from clbeam.evaluation.bench import intensity_error_db, markdown_table, peak_agreement, run_benchmark, write_report
+from clbeam.model.grid import PolarGrid
+from scenes import point_ping, polar_point
+
+
+def test_intensity_error_of_a_10_percent_gain_error_is_minus_20_db():
+    exact = np.random.default_rng(0).uniform(1, 2, (20, 30))
+    assert intensity_error_db(1.1 * exact, exact) == pytest.approx(-20.0, abs=1e-9)
+    # cells more than 40 dB below the maximum are left out
+    exact[0, 0] = 1e-6
+    got = 1.1 * exact
+    got[0, 0] = 1.0
+    assert intensity_error_db(got, exact) == pytest.approx(-20.0, abs=1e-9)
+
+
+def test_peak_agreement_within_one_cell():
+    cf = np.zeros((20, 20))
+    cf[5, 5] = cf[12, 14] = 0.9
+    shifted = np.roll(cf, 1, axis=1)
+    assert peak_agreement(shifted, cf, 0.25) == (1.0, 1.0)
+    far = np.roll(cf, 3, axis=0)
+    assert peak_agreement(far, cf, 0.25) == (0.0, 0.0)
+    half = cf.copy()
+    half[12, 14] = 0
+    assert peak_agreement(half, cf, 0.25) == (1.0, 0.5)
+
+
+def test_tiny_benchmark_run_writes_table_csv_and_plot(tmp_path):
+    ping = point_ping([polar_point(60, 20), polar_point(70, -30)], record_s=0.1)
+    grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=1, max_range_m=72, angles_deg=(-40, 40))
+    window = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.2, min_range_m=55, max_range_m=65, angles_deg=(15, 25))
+    res = run_benchmark(ping, grid=grid, accuracy_grid=window, repeats=1, reference_stride=20,
+                        cases=(("linear", 1, "float32"), ("lanczos8", 1, "float32")))
+    lin, lz = res.rows
+    # Lanczos-8 is far closer to the exact band-limited interpolator than linear
+    assert lz.intensity_error_db < lin.intensity_error_db - 20
+    assert lin.cells_ch_per_s == pytest.approx(grid.n_cells * 64 / (lin.ms_per_ping / 1e3), rel=1e-9)
+    paths = write_report(res, tmp_path)
+    assert "| linear |" in markdown_table(res) and paths["plot"].stat().st_size > 10_000

@@ -1,0 +1,94 @@
+"""Hann smoothing and coherence peaks against scipy and a brute-force
+regional-maximum search (MATLAB imregionalmax semantics)."""
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from clbeam.imaging.postprocess import HANN7, coherence_peaks, hann_smooth
+
+
+def test_hann7_is_the_papers_window_normalised():
+    np.testing.assert_allclose(HANN7 * 3.0, [0, 0.25, 0.75, 1, 0.75, 0.25, 0])
+    w = scipy.signal.windows.hann(7)
+    np.testing.assert_allclose(HANN7, w / w.sum())
+
+
+def test_hann_smoothing_is_a_zero_padded_convolution_along_range():
+    rng = np.random.default_rng(0)
+    cf = rng.uniform(0, 1, (5, 40))
+    got = hann_smooth(cf)
+    for row in range(5):
+        np.testing.assert_allclose(got[row], np.convolve(cf[row], HANN7, mode="same"), atol=1e-15)
+    assert got.max() <= 1.0 and got.min() >= 0.0
+
+
+def brute_force_regional_maxima(img):
+    """Connected (8-neighbour) plateaus strictly above every neighbour."""
+    n_a, n_r = img.shape
+    seen = np.zeros(img.shape, dtype=bool)
+    plateaus = []
+    for i in range(n_a):
+        for j in range(n_r):
+            if seen[i, j]:
+                continue
+            v = img[i, j]
+            stack, members, is_max = [(i, j)], [], True
+            seen[i, j] = True
+            while stack:
+                a, b = stack.pop()
+                members.append((a, b))
+                for da in (-1, 0, 1):
+                    for db in (-1, 0, 1):
+                        x, y = a + da, b + db
+                        if (da or db) and 0 <= x < n_a and 0 <= y < n_r:
+                            if img[x, y] == v and not seen[x, y]:
+                                seen[x, y] = True
+                                stack.append((x, y))
+                            elif img[x, y] > v:
+                                is_max = False
+            if is_max:
+                plateaus.append(members)
+    return plateaus
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_peaks_are_regional_maxima_one_per_plateau(seed):
+    rng = np.random.default_rng(seed)
+    img = rng.integers(0, 6, (12, 15)) / 5.0  # coarse levels: many plateaus and ties
+    threshold = 0.25
+    expected = [p for p in brute_force_regional_maxima(img) if img[p[0]] > threshold]
+    got = coherence_peaks(img, threshold)
+    assert len(got) == len(expected)
+    members = [set(p) for p in expected]
+    for a, r in got:  # each reported peak lies on a distinct expected plateau
+        hits = [k for k, m in enumerate(members) if (a, r) in m]
+        assert len(hits) == 1
+        members[hits[0]] = set()
+
+
+def test_hand_made_plateau_counts_once_and_ties_apart_count_twice():
+    img = np.zeros((7, 9))
+    img[1:3, 1:4] = 0.8           # a 2 x 3 plateau: one peak
+    img[5, 2] = img[5, 6] = 0.6   # two separate equal maxima: two peaks
+    img[3, 7] = 0.2               # below the threshold
+    peaks = coherence_peaks(img, 0.25)
+    assert len(peaks) == 3
+    assert tuple(peaks[0]) in {(1, 2), (2, 2)}  # plateau member nearest its centroid (1.5, 2)
+    assert {tuple(p) for p in peaks[1:]} == {(5, 2), (5, 6)}
+
+
+def test_plateau_touching_a_higher_neighbour_is_not_a_peak():
+    img = np.zeros((5, 5))
+    img[1:4, 1:4] = 0.5
+    img[2, 4] = 0.9
+    peaks = coherence_peaks(img, 0.25)
+    assert [tuple(p) for p in peaks] == [(2, 4)]
+
+
+def test_a_constant_image_has_no_regional_maximum_as_in_scikit_image():
+    from skimage.morphology import local_maxima
+
+    img = np.full((5, 7), 0.8)
+    assert not local_maxima(img, connectivity=2, allow_borders=True).any()
+    assert len(coherence_peaks(img, 0.25)) == 0

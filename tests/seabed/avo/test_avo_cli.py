@@ -1,0 +1,94 @@
+"""``clbeam avo``: table columns, figures, one-line errors, two provinces on synthetic images."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+
+import numpy as np
+import pytest
+
+from clbeam.seabed.avo.cli import register_avo
+from clbeam.seabed.avo.model import backscatter_strength_db
+from clbeam.seabed.avo.table import COLUMNS
+from clbeam.errors import ClbeamError
+from test_avo_response import northward_track, seabed_ping, write_image_file
+
+ANG = np.arange(-70.0, 70.01, 1.0)
+RNG = np.arange(0.0, 310.0, 0.5)
+SPACING_M = 2.0
+
+
+def run(argv):
+    """Parse ``argv`` with the avo subcommand alone and run it."""
+    p = argparse.ArgumentParser(prog="clbeam")
+    sub = p.add_subparsers(dest="command", required=True)
+    register_avo(sub, lambda sp: sp.add_argument("-q", "--quiet", action="store_true"))
+    args = p.parse_args(["avo", *argv])
+    return args.func(args)
+
+
+@pytest.fixture(scope="module")
+def two_provinces(tmp_path_factory):
+    """40 pings, 2 m apart: Mz 1.5 (medium sand) for 20, then Mz 6 (silt); speckled."""
+    rng = np.random.default_rng(3)
+    mz = np.where(np.arange(40) < 20, 1.5, 6.0)
+    data = np.array([seabed_ping(ANG, RNG, lambda i, z=z: backscatter_strength_db(90.0 - i, 5500.0, mz=z),
+                                 gain=1e-3, rng=rng) for z in mz]).astype(np.float32)
+    lat, lon = northward_track(40, SPACING_M)
+    return write_image_file(tmp_path_factory.mktemp("avo") / "img.nc", data, ANG, RNG, latitude=lat, longitude=lon)
+
+
+def test_cli_writes_the_table_and_figures_and_separates_the_provinces(two_provinces, tmp_path, capsys):
+    out = tmp_path / "avo.csv"
+    figs = tmp_path / "figs"
+    # gain 1e-3 of the synthetic images = -30 dB: calibrated strengths
+    assert run([str(two_provinces), "-o", str(out), "--pings-per-patch", "20", "--calibration-db", "30",
+                "--figures", str(figs)]) == 0
+    assert "40 ping(s) -> 4 patches" in capsys.readouterr().out
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert tuple(rows[0].keys()) == COLUMNS
+    assert [(r["side"], r["ping_start"], r["ping_stop"]) for r in rows] == [
+        ("port", "0", "20"), ("starboard", "0", "20"), ("port", "20", "40"), ("starboard", "20", "40")]
+    # patch centres: mean of pings 0-19 and 20-39 at 2 m spacing
+    assert [float(r["along_track_m"]) for r in rows] == pytest.approx([19, 19, 59, 59], abs=1e-3)
+    mz = np.array([float(r["mz_phi"]) for r in rows])
+    a = np.array([float(r["intercept_a_db"]) for r in rows])
+    # sand inverts coarse, silt fine; 20 speckled pings leave about 0.3-0.5 dB per bin
+    assert np.all(mz[:2] < 3.0) and np.all(mz[2:] > 4.5), mz
+    # the model's intercept A: sand about 6 dB above silt at 5.5 kHz (noise-free: see below)
+    inc = np.arange(0.5, 85.0, 1.0)
+    from clbeam.seabed.avo.attributes import angular_attributes
+    a_true = [angular_attributes(inc, backscatter_strength_db(90 - inc, 5500.0, mz=z)).intercept_a_db
+              for z in (1.5, 6.0)]
+    assert a[:2] == pytest.approx([a_true[0]] * 2, abs=1.0)
+    assert a[2:] == pytest.approx([a_true[1]] * 2, abs=1.0)
+    for name in ("avo_response_first.png", "avo_response_last.png", "avo_gradient_intercept.png", "avo_track.png"):
+        assert (figs / name).stat().st_size > 10_000, name
+
+
+def test_partial_patch_and_no_inversion(two_provinces, tmp_path):
+    out = tmp_path / "avo.csv"
+    assert run([str(two_provinces), "-o", str(out), "--pings-per-patch", "30", "--no-invert", "-q"]) == 0
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    # 40 pings, 30 per patch: one full and one partial patch per side
+    assert [(r["ping_start"], r["ping_stop"]) for r in rows] == [("0", "30"), ("0", "30"), ("30", "40"), ("30", "40")]
+    assert all(r["mz_phi"] == "nan" for r in rows)
+
+
+def test_bad_inputs_are_one_line_errors(tmp_path, two_provinces):
+    import xarray as xr
+
+    other = tmp_path / "x.nc"
+    xr.Dataset({"a": ("x", np.zeros(3))}).to_netcdf(other, engine="h5netcdf")
+    with pytest.raises(ClbeamError, match="not a clbeam image file") as e:
+        run([str(other), "-o", str(tmp_path / "a.csv")])
+    assert "\n" not in str(e.value)
+    with pytest.raises(ClbeamError, match="does not exist"):
+        run([str(two_provinces), "-o", str(tmp_path / "nope" / "a.csv")])
+    with pytest.raises(ClbeamError, match="pings-per-patch"):
+        run([str(two_provinces), "-o", str(tmp_path / "a.csv"), "--pings-per-patch", "0"])
+    with pytest.raises(ClbeamError, match="frequency_hz"):
+        run([str(two_provinces), "-o", str(tmp_path / "a.csv"), "--frequency", "-5"])
