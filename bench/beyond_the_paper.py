@@ -24,15 +24,20 @@ from pathlib import Path
 
 import numpy as np
 
-from clbeam.imaging.apodization import calibration_factors, receive_weights, sidelobe_level_db
 from clbeam.evaluation.demo import score_targets
-from clbeam.model.grid import PolarGrid
+from clbeam.imaging.apodization import (
+    calibration_factors,
+    receive_weights,
+    sidelobe_level_db,
+)
 from clbeam.imaging.imager import Imager, ImagingOptions
-from clbeam.io.pingfile import PingFile, write_ping_file
 from clbeam.imaging.postprocess import peak_row
 from clbeam.imaging.signal import apply_channel_response
-from clbeam.sim.simulator import load_scene, simulate
 from clbeam.imaging.stacking import PingStack
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
+from clbeam.sim.simulator import load_scene, simulate
 
 WINDOWS = ("rect", "hann", "tukey:0.5", "chebyshev:30", "chebyshev:40")
 
@@ -145,7 +150,7 @@ def main(argv=None) -> int:
               "a detection is a peak within 2 m of a pipeline:", "",
               "| pings stacked | threshold | pipelines detected | other peaks per ping |", "|---:|---:|---:|---:|"]
     lines += [f"| {k} | {thr:g} | {h}/{n} | {o:.1f} |" for k, thr, h, n, o in stacking_rows(out, args.pings)]
-    from clbeam.imaging.mlh import compare_on_simulation
+    from clbeam.evaluation.scoring import compare_on_simulation
 
     lines += ["", f"Main-lobe highlight suppression on line1 ({args.pings} pings):", ""]
     for threshold in (0.25, 0.4):

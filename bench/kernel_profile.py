@@ -29,9 +29,10 @@ CHILD = "--child"
 
 def run_child(modes, compact: bool) -> None:
     sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
+    from scenes import bandlimited_noise, sbp_elements
+
     from clbeam.evaluation.bench import paper_grid
     from clbeam.imaging.engine import BeamformInput, get_engine
-    from scenes import bandlimited_noise, sbp_elements
 
     c = 1500.0 * (30 if compact else 1)
     n = 2070 if compact else 62000

@@ -5,10 +5,10 @@
 
 import numpy as np
 import pytest
+from scenes import point_ping, polar_point
 
 from clbeam.evaluation.bench import paper_grid
 from clbeam.imaging.imager import Imager, ImagingOptions
-from scenes import point_ping, polar_point
 
 GRID = paper_grid()
 

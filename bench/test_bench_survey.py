@@ -29,9 +29,9 @@ import shutil
 import numpy as np
 import pytest
 
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import ImagingOptions
-from clbeam.io.pingfile import write_ping_file
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
 from clbeam.sim.simulator import load_scene, simulate
 from clbeam.survey.run import SurveyOptions, open_survey, run_survey
 

@@ -18,9 +18,9 @@ import sys
 import threading
 
 from clbeam.errors import ClbeamError
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.io.pingfile import PingFile
+from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger("embed_server")
 

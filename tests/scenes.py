@@ -9,9 +9,10 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from clbeam.model.grid import to_earth_frame
 from clbeam.imaging.engine import BeamformInput
-from clbeam.io.pingfile import Ping, Pulse
+from clbeam.imaging.geometry import to_earth_frame
+from clbeam.model.ping import Ping
+from clbeam.model.pulse import Pulse
 
 FS = 40000.0
 C = 1500.0

@@ -19,8 +19,8 @@ def _say(args):
 
 
 def cmd_simulate(args) -> int:
+    from clbeam.io.pingwrite import write_ping_file
     from clbeam.sim.simulator import load_scene, simulate
-    from clbeam.io.pingfile import write_ping_file
 
     scene = load_scene(args.scene, pings=args.pings, max_range_m=args.max_range)
     t0 = time.perf_counter()
@@ -73,9 +73,10 @@ def register_demo(sub, common) -> None:
 
 
 def cmd_bench(args) -> int:
-    from clbeam.evaluation.bench import run_benchmark, write_report, markdown_table
+    from clbeam.evaluation.bench import markdown_table, run_benchmark, write_report
+    from clbeam.io.pingfile import PingFile
+    from clbeam.io.pingwrite import write_ping_file
     from clbeam.sim.simulator import load_scene, simulate
-    from clbeam.io.pingfile import PingFile, write_ping_file
 
     say = _say(args)
     say(f"simulating one ping of '{args.scene}'")
@@ -136,9 +137,14 @@ def register_survey(sub, common) -> None:
 
 
 def cmd_sediment_speed(args) -> int:
-    from clbeam.cli.main import check_output_path, grid_from_args, options_from_args, progress
-    from clbeam.io.pingfile import PingFile
+    from clbeam.cli.main import (
+        check_output_path,
+        grid_from_args,
+        options_from_args,
+        progress,
+    )
     from clbeam.imaging.sediment_speed import scan_sediment_speed
+    from clbeam.io.pingfile import PingFile
 
     lo, hi, step = args.speeds
     require(step > 0 and hi > lo, OptionError, f"--speeds needs MIN < MAX and STEP > 0, got {lo:g} {hi:g} {step:g}")

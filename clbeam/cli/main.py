@@ -139,8 +139,10 @@ def cmd_devices(args) -> int:
 
 def cmd_image(args) -> int:
     from clbeam.imaging.imager import Imager
-    from clbeam.io.images import ImageWriter, write_peaks_csv
+    from clbeam.io.images import ImageWriter
+    from clbeam.io.peaks import write_peaks_csv
     from clbeam.io.pingfile import PingFile
+    from clbeam.io.schema import image_variables
 
     opts = options_from_args(args)
     check_output_path(args.output, args.pings)
@@ -155,7 +157,7 @@ def cmd_image(args) -> int:
     require(args.stack == 1 or "cf" in opts.outputs, OptionError, "--stack needs the cf output")
     with PingFile(args.pings) as pings:
         grid = grid_from_args(args, pings.max_record_range_m())
-        variables = list(opts.outputs)
+        variables = image_variables(opts.outputs, apodized=opts.apodization != "rect")
         stack = None
         if args.stack > 1:
             from clbeam.imaging.stacking import PingStack, stacked_ping_image
@@ -163,10 +165,6 @@ def cmd_image(args) -> int:
             stack = PingStack(args.stack, opts.threshold)
             opts = dataclasses.replace(opts, outputs=tuple(set(opts.outputs) | {"intensity", "sums"}))
         imager = Imager(grid, opts, backend=args.backend, device=args.device)
-        if "cf" in variables:
-            variables.append("cf_smooth")
-        if "sums" in variables:
-            variables += ["s_r", "s_i", "q", "m"] + (["w"] if opts.apodization != "rect" else [])
         attrs = {"interp": opts.interp, "upsample": opts.upsample, "backend": args.backend,
                  "apodization": opts.apodization, "calibrated": int(opts.calibrate), "stacked_pings": args.stack,
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
@@ -180,7 +178,7 @@ def cmd_image(args) -> int:
                     img = imager.image(ping)
                     if stack is not None:
                         img = stacked_ping_image(
-                            img, stack.add(img), keep_sums="sums" in variables,
+                            img, stack.add(img), keep_sums="s_r" in variables,
                             peak_rows=lambda cf, inten, ping=ping, img=img: imager.peak_rows(ping, cf, inten,
                                                                                               img.source_yz_m))
                     writer.write(ping.index, img, latitude=ping.latitude_deg, longitude=ping.longitude_deg,
@@ -200,8 +198,9 @@ def cmd_image(args) -> int:
 
 
 def cmd_peaks(args) -> int:
-    from clbeam.io.images import open_images, write_peaks_csv
     from clbeam.imaging.postprocess import peaks_from_images
+    from clbeam.io.images import open_images
+    from clbeam.io.peaks import write_peaks_csv
 
     ds = open_images(args.images)
     try:

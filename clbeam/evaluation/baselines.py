@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.engine.common import BeamformInput
+from clbeam.model.grid import PolarGrid
 
 
 def _compile():

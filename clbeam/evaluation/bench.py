@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from clbeam.imaging.engine import get_engine
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
 from clbeam.imaging.signal import upsample_analytic
+from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
 

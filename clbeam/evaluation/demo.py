@@ -16,11 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
-from clbeam.io.images import ImageWriter, write_peaks_csv
-from clbeam.io.pingfile import PingFile, write_ping_file
 from clbeam.io.figures import plot_cross_track
+from clbeam.io.images import ImageWriter
+from clbeam.io.peaks import write_peaks_csv
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
 

@@ -17,17 +17,28 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from clbeam.imaging.apodization import calibration_factors, parse_window, receive_weights
+from clbeam.errors import ClbeamError, GeometryError, GridError, OptionError, require
+from clbeam.imaging.apodization import (
+    calibration_factors,
+    parse_window,
+    receive_weights,
+)
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
 from clbeam.imaging.engine.common import cell_windows, check_outputs
-from clbeam.errors import ClbeamError, GeometryError, GridError, OptionError, require
-from clbeam.model.grid import PolarGrid, check_positions, to_earth_frame
-from clbeam.io.pingfile import Ping
-from clbeam.io.images import PEAK_COLUMNS
+from clbeam.imaging.geometry import check_positions, to_earth_frame
 from clbeam.imaging.mlh import mlh_peak_rows
-from clbeam.imaging.postprocess import DEFAULT_THRESHOLD, coherence_peaks, hann_smooth, peak_row
-from clbeam.imaging.raytrace import SoundSpeedProfile, eigenrays, travel_time_tables
+from clbeam.imaging.postprocess import (
+    DEFAULT_THRESHOLD,
+    coherence_peaks,
+    hann_smooth,
+    peak_row,
+)
+from clbeam.imaging.raytrace import eigenrays, travel_time_tables
 from clbeam.imaging.signal import compress_analytic, upsample_analytic
+from clbeam.io.peaks import PEAK_COLUMNS
+from clbeam.model.grid import PolarGrid
+from clbeam.model.ping import Ping
+from clbeam.model.svp import SoundSpeedProfile
 
 log = logging.getLogger(__name__)
 

@@ -48,19 +48,17 @@ import logging
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from clbeam.errors import GeometryError, OptionError, require
 from clbeam.model.grid import PolarGrid
+from clbeam.model.svp import Layer, SoundSpeedProfile
 
 log = logging.getLogger(__name__)
 
-#: slowest and fastest sound speed a profile may hold (m/s): water 1300-1700, sediment up to 2000
-SPEED_MIN_M_S = 1300.0
-SPEED_MAX_M_S = 2000.0
 #: eigenray convergence: |X(p) - |y|| at most this times the distance to the
 #: target (1e-6 m at 1 km): the first-order time error p |X - y| is then below
 #: 1e-9 s at 1.3 km, the returned (stationary) time's error far below, and the
@@ -78,230 +76,6 @@ BLOCK = 32768
 LEVEL_REL = 1e-12
 #: floor of cos^2 of the ray angle: keeps 0/0 out of layers a ray does not enter
 _COS2_FLOOR = 1e-300
-
-
-class _Layer(NamedTuple):
-    """Depth interval ``[top, bot]`` with ``c(z) = c_ref + g (z - z_ref)``."""
-
-    top: float
-    bot: float
-    z_ref: float
-    c_ref: float
-    g: float
-
-
-# ---------------------------------------------------------------------------
-# Profile
-# ---------------------------------------------------------------------------
-@dataclass(frozen=True)
-class SoundSpeedProfile:
-    """Sound speed against depth, piecewise linear, constant beyond the ends.
-
-    Attributes
-    ----------
-    depths_m : numpy.ndarray
-        Depths (m, positive down) on the earth-frame ``z`` axis, i.e. below
-        the transducer reference (``z = 0``): non-decreasing; a depth may be
-        repeated once, with two different speeds, to make a jump (an
-        interface such as the seabed).  Negative depths (above the
-        transducers) are allowed.
-    speeds_m_s : numpy.ndarray
-        Sound speed (m/s) at each depth, within
-        ``[SPEED_MIN_M_S, SPEED_MAX_M_S]`` (1300-2000 m/s).
-
-    Notes
-    -----
-    Between two points of different depth the speed is linear in depth (a
-    constant-gradient layer); above the first point it is ``speeds_m_s[0]``,
-    below the last ``speeds_m_s[-1]``.  At a jump depth the upper value holds
-    just above the interface and the lower value just below it; a point
-    exactly on an interface is reached from above.
-    """
-
-    depths_m: np.ndarray
-    speeds_m_s: np.ndarray
-    _layers: tuple = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self):
-        d = _as_float_array(self.depths_m, "profile depths")
-        c = _as_float_array(self.speeds_m_s, "profile speeds")
-        _check_points(d, c)
-        d.setflags(write=False)
-        c.setflags(write=False)
-        object.__setattr__(self, "depths_m", d)
-        object.__setattr__(self, "speeds_m_s", c)
-        object.__setattr__(self, "_layers", _build_layers(d, c))
-
-    def __eq__(self, other):
-        if not isinstance(other, SoundSpeedProfile):
-            return NotImplemented
-        return bool(np.array_equal(self.depths_m, other.depths_m) and np.array_equal(self.speeds_m_s, other.speeds_m_s))
-
-    def __hash__(self):
-        return hash((self.depths_m.tobytes(), self.speeds_m_s.tobytes()))
-
-    # -- constructors --------------------------------------------------------
-    @classmethod
-    def constant(cls, speed_m_s: float, depth_m: float = 0.0) -> "SoundSpeedProfile":
-        """An isospeed ocean.
-
-        Parameters
-        ----------
-        speed_m_s : float
-            Sound speed (m/s).
-        depth_m : float
-            Depth of the single profile point (m); irrelevant to the result.
-
-        Returns
-        -------
-        SoundSpeedProfile
-        """
-        return cls(np.array([depth_m], dtype=np.float64), np.array([speed_m_s], dtype=np.float64))
-
-    @classmethod
-    def with_sediment(cls, water: "SoundSpeedProfile", seabed_depth_m: float,
-                      sediment_speed_m_s: float) -> "SoundSpeedProfile":
-        """A water profile cut at a flat seabed, with a constant sediment speed below.
-
-        Parameters
-        ----------
-        water : SoundSpeedProfile
-            Water-column profile; its points below the seabed are dropped and
-            its speed at the seabed (from above) becomes the last water point.
-        seabed_depth_m : float
-            Depth of the seabed (m, on the profile's depth axis).
-        sediment_speed_m_s : float
-            Sediment interval velocity (m/s) below the seabed, e.g. 0.98 x
-            1490 m/s for the paper's mud.
-
-        Returns
-        -------
-        SoundSpeedProfile
-            With a jump (two points at ``seabed_depth_m``) when the sediment
-            speed differs from the water speed at the seabed.
-
-        Raises
-        ------
-        OptionError
-            When the seabed depth is not finite or the sediment speed is out of range.
-        """
-        require(isinstance(water, SoundSpeedProfile), OptionError,
-                f"with_sediment needs a SoundSpeedProfile for the water, got {type(water).__name__}")
-        zs = float(seabed_depth_m)
-        require(math.isfinite(zs), OptionError, f"seabed depth must be finite, got {seabed_depth_m!r}")
-        keep = water.depths_m < zs
-        c_sb = float(water.speed(zs, side="above"))
-        depths = np.concatenate([water.depths_m[keep], [zs]])
-        speeds = np.concatenate([water.speeds_m_s[keep], [c_sb]])
-        if float(sediment_speed_m_s) != c_sb:
-            depths = np.append(depths, zs)
-            speeds = np.append(speeds, float(sediment_speed_m_s))
-        return cls(depths, speeds)
-
-    # -- queries -------------------------------------------------------------
-    def speed(self, depth_m, side: str = "below") -> np.ndarray:
-        """Sound speed at depths (m/s).
-
-        Parameters
-        ----------
-        depth_m : array_like
-            Depths (m).
-        side : {"below", "above"}
-            Which value holds exactly at a jump: the one just below the
-            interface (a ray leaving downward) or just above it (a ray
-            arriving from above).
-
-        Returns
-        -------
-        numpy.ndarray
-            Speeds (m/s), the shape of ``depth_m``.
-        """
-        require(side in ("below", "above"), OptionError, f"side must be 'below' or 'above', got {side!r}")
-        z = np.asarray(depth_m, dtype=np.float64)
-        out = np.empty(z.shape)
-        for lay in self._layers:
-            inside = (z >= lay.top) & (z < lay.bot) if side == "below" else (z > lay.top) & (z <= lay.bot)
-            out = np.where(inside, lay.c_ref + lay.g * (np.clip(z, lay.top, lay.bot) - lay.z_ref), out)
-        return out
-
-    @property
-    def jump_depths_m(self) -> np.ndarray:
-        """Depths of the speed jumps (m), possibly empty."""
-        d = self.depths_m
-        return d[1:][np.diff(d) == 0]
-
-    @property
-    def is_constant(self) -> bool:
-        """True when the speed is the same everywhere."""
-        return bool(np.all(self.speeds_m_s == self.speeds_m_s[0]))
-
-
-def holland_line1_profile(sediment_speed_m_s: float | None = None) -> SoundSpeedProfile:
-    """The measured profile of Holland et al. (2024), Line 1, on the array's depth axis.
-
-    Transducers 5 m below the surface (``z = 0``); 1522 m/s in the 8 m
-    surface mixed layer (``z = -5`` to ``3`` m), then linear to 1490 m/s at
-    the seabed, 225 m below the transducers; 1490 m/s below unless a
-    sediment speed is given.
-
-    Parameters
-    ----------
-    sediment_speed_m_s : float, optional
-        Sediment speed (m/s) below the seabed (the paper's mud: 0.98 x 1490).
-
-    Returns
-    -------
-    SoundSpeedProfile
-    """
-    water = SoundSpeedProfile(np.array([-5.0, 3.0, 225.0]), np.array([1522.0, 1522.0, 1490.0]))
-    if sediment_speed_m_s is None:
-        return water
-    return SoundSpeedProfile.with_sediment(water, 225.0, sediment_speed_m_s)
-
-
-def _check_points(d: np.ndarray, c: np.ndarray) -> None:
-    """One-line :class:`OptionError` unless ``(d, c)`` make a valid profile."""
-    if d.ndim != 1 or d.size < 1:
-        raise OptionError(f"a sound-speed profile needs at least 1 point (1-D depths), got shape {d.shape}")
-    if c.shape != d.shape:
-        raise OptionError(f"profile speeds must match the depths: {d.size} depths, speeds of shape {c.shape}")
-    if not np.all(np.isfinite(d)):
-        raise OptionError(f"profile depths must be finite, got {d[~np.isfinite(d)][0]:g}")
-    if not np.all(np.isfinite(c)):
-        raise OptionError(f"profile speeds must be finite, got {c[~np.isfinite(c)][0]:g}")
-    out = np.flatnonzero((c < SPEED_MIN_M_S) | (c > SPEED_MAX_M_S))
-    if out.size:
-        raise OptionError(f"profile speed {c[out[0]]:g} m/s at depth {d[out[0]]:g} m is outside "
-                          f"{SPEED_MIN_M_S:g}-{SPEED_MAX_M_S:g} m/s (water 1300-1700, sediment up to 2000)")
-    step = np.diff(d)
-    dec = np.flatnonzero(step < 0)
-    if dec.size:
-        raise OptionError(f"profile depths must increase, got {d[dec[0]]:g} m followed by {d[dec[0] + 1]:g} m")
-    rep = np.flatnonzero(step == 0)
-    triple = rep[1:][np.diff(rep) == 1]
-    if triple.size:
-        raise OptionError(f"profile depth {d[triple[0]]:g} m appears more than twice; a jump is one repeated depth")
-    same = rep[c[rep] == c[rep + 1]]
-    if same.size:
-        raise OptionError(f"profile depth {d[same[0]]:g} m is repeated with the same speed; "
-                          "a repeated depth must be a jump in speed")
-
-
-def _as_float_array(values, name: str) -> np.ndarray:
-    try:
-        return np.array(values, dtype=np.float64, ndmin=1)
-    except (TypeError, ValueError):
-        raise OptionError(f"{name} must be numbers, got {values!r}") from None
-
-
-def _build_layers(d: np.ndarray, c: np.ndarray) -> tuple[_Layer, ...]:
-    layers = [_Layer(-math.inf, float(d[0]), float(d[0]), float(c[0]), 0.0)]
-    for i in range(d.size - 1):
-        if d[i + 1] > d[i]:
-            g = float((c[i + 1] - c[i]) / (d[i + 1] - d[i]))
-            layers.append(_Layer(float(d[i]), float(d[i + 1]), float(d[i]), float(c[i]), g))
-    layers.append(_Layer(float(d[-1]), math.inf, float(d[-1]), float(c[-1]), 0.0))
-    return tuple(layers)
 
 
 # ---------------------------------------------------------------------------
@@ -336,7 +110,7 @@ class _Segment(NamedTuple):
 
 def _segments(layers, i: int, k: int) -> tuple[_Segment, ...]:
     """Segments of rays starting in layer ``i`` and ending in layer ``k``."""
-    def speed_at(lay: _Layer, z: float) -> float:
+    def speed_at(lay: Layer, z: float) -> float:
         return lay.c_ref + lay.g * (z - lay.z_ref)
 
     li, lk = layers[i], layers[k]
@@ -649,7 +423,7 @@ def _solve_block(profile: SoundSpeedProfile, za, y: np.ndarray, zb: np.ndarray, 
     todo = np.flatnonzero(below) if not below.all() else np.arange(y.size)
     if todo.size:
         sel = (lambda v: v) if todo.size == y.size else (lambda v: v[todo])
-        block = _Block(profile._layers, za if np.ndim(za) == 0 else sel(za_arr), np.abs(sel(y)), sel(zb))
+        block = _Block(profile.layers, za if np.ndim(za) == 0 else sel(za_arr), np.abs(sel(y)), sel(zb))
         a = block.arr
         t, ok, pending = _newton(block, a["dz"] / (np.hypot(a["dz"], a["y"]) + a["y"]))   # straight line
         idx = np.flatnonzero(ok)
@@ -686,8 +460,8 @@ def _fill_level(profile, za_arr, y, dz, level, out, fields) -> None:
     horizontal ray where the speed just below the source is constant."""
     idx = np.flatnonzero(level)
     za = za_arr[idx]
-    bots = np.array([lay.bot for lay in profile._layers])
-    flat = np.array([lay.g == 0.0 for lay in profile._layers])[np.searchsorted(bots, za, side="right")]
+    bots = np.array([lay.bot for lay in profile.layers])
+    flat = np.array([lay.g == 0.0 for lay in profile.layers])[np.searchsorted(bots, za, side="right")]
     yy, dd = y[idx], dz[idx]
     ok = flat | (yy == 0)
     idx, yy, dd, za = idx[ok], yy[ok], dd[ok], za[ok]

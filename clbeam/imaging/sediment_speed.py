@@ -31,9 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from clbeam.errors import OptionError, require
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.imaging.mlh import pulse_range_resolution_m
+from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
 

@@ -14,30 +14,6 @@ import scipy.fft
 from clbeam.errors import OptionError, require
 
 
-def lfm_replica(*, f0_hz: float, f1_hz: float, duration_s: float, sample_rate_hz: float) -> np.ndarray:
-    """Linear-FM transmit replica (unit amplitude, no taper).
-
-    ``x(t) = cos(2π (f0 t + (f1 - f0) t² / (2 T)))`` for ``0 <= t < T``,
-    sampled at ``t = k / fs``.
-
-    Parameters
-    ----------
-    f0_hz, f1_hz : float
-        Start and end frequencies (Hz).
-    duration_s : float
-        Pulse length ``T`` (s).
-    sample_rate_hz : float
-        Sample rate ``fs`` (Hz).
-    """
-    require(duration_s > 0 and np.isfinite(duration_s), OptionError, f"pulse_duration must be > 0 s, got {duration_s!r}")
-    require(sample_rate_hz > 0, OptionError, f"sample_rate must be > 0 Hz, got {sample_rate_hz!r}")
-    require(0 <= f0_hz < sample_rate_hz / 2 and 0 <= f1_hz < sample_rate_hz / 2, OptionError,
-            f"pulse band {f0_hz:g}-{f1_hz:g} Hz must lie below the Nyquist frequency {sample_rate_hz / 2:g} Hz")
-    n = max(int(round(duration_s * sample_rate_hz)), 1)
-    t = np.arange(n) / sample_rate_hz
-    return np.cos(2 * np.pi * (f0_hz * t + 0.5 * (f1_hz - f0_hz) / duration_s * t * t))
-
-
 def compress_analytic(samples: np.ndarray, replica: np.ndarray) -> np.ndarray:
     """Pulse compression and analytic signal of real channels in one FFT pass.
 

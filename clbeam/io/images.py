@@ -1,55 +1,52 @@
-"""Image files (NetCDF4 or Zarr, SPEC §8) and peak tables (CSV).
+"""Image files (NetCDF4 or Zarr, SPEC §8).
 
 Image files hold ``intensity(ping, angle, range)`` and ``cf(ping, angle,
 range)`` (plus ``cf_smooth`` and, on request, the raw sums ``s_r``, ``s_i``,
-``q``, ``m``, and ``w`` with apodization) with coordinates ``range`` (m) and ``angle`` (degree).  They
-are written one ping at a time, so memory stays bounded whatever the count.
+``q``, ``m``, and ``w`` with apodization: :data:`clbeam.io.schema.IMAGE_VARIABLES`)
+with coordinates ``range`` (m) and ``angle`` (degree).  They are written one
+ping at a time straight into the file's chunks (one chunk per ping and
+variable), so memory stays bounded whatever the count and nothing beyond
+h5netcdf and zarr is needed.
 """
 
 from __future__ import annotations
 
-import csv
-import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from clbeam.errors import ClbeamError, PingFileError, require
+from clbeam.io.schema import (
+    FORMAT_ATTRIBUTE,
+    IMAGE_COORDS,
+    IMAGE_DIMS,
+    IMAGE_DTYPES,
+    IMAGE_FORMAT,
+    IMAGE_PING_VARIABLES,
+    IMAGE_VARIABLES,
+)
 from clbeam.model.grid import PolarGrid
-
-PEAK_COLUMNS = ("ping", "range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db")
-
-IMAGE_FORMAT = "images-1"
-
-VARIABLES = {
-    "intensity": ("intensity |S|^2 (Holland et al. 2024 eq. 1)", "squared input units"),
-    "cf": ("coherence factor |S|^2 / (M Q); |S|^2 / (W Q) with apodization", "1"),
-    "cf_smooth": ("coherence factor, 7-point Hann smoothed along range", "1"),
-    "s_r": ("coherent sum S = sum w p, real part", "input units"),
-    "s_i": ("coherent sum S, imaginary part", "input units"),
-    "q": ("incoherent sum Q = sum w |p|^2 (w = 1 without apodization)", "squared input units"),
-    "m": ("number of contributing channels M", "1"),
-    "w": ("sum W of the contributing channels' apodization weights", "1"),
-}
 
 
 def image_arrays(img) -> dict:
-    """The arrays of one :class:`~clbeam.imaging.imager.PingImage` by variable name."""
+    """The arrays of one :class:`~clbeam.imaging.imager.PingImage` by variable
+    name, in the dtypes of :data:`clbeam.io.schema.IMAGE_DTYPES`."""
     out = {}
     if img.intensity is not None:
-        out["intensity"] = img.intensity.astype(np.float32)
+        out["intensity"] = img.intensity
     if img.cf is not None:
-        out["cf"] = img.cf.astype(np.float32)
-        out["cf_smooth"] = img.cf_smooth.astype(np.float32)
+        out["cf"] = img.cf
+        out["cf_smooth"] = img.cf_smooth
     if img.sums is not None and img.sums.s is not None:
-        out["s_r"] = img.sums.s.real.astype(np.float32)
-        out["s_i"] = img.sums.s.imag.astype(np.float32)
-        out["q"] = img.sums.q.astype(np.float32)
-        out["m"] = img.sums.m.astype(np.int16)
+        out["s_r"] = img.sums.s.real
+        out["s_i"] = img.sums.s.imag
+        out["q"] = img.sums.q
+        out["m"] = img.sums.m
         if img.sums.w is not None:
-            out["w"] = img.sums.w.astype(np.float32)
-    return out
+            out["w"] = img.sums.w
+    return {k: np.asarray(v).astype(IMAGE_DTYPES[k], copy=False) for k, v in out.items()}
 
 
 class ImageWriter:
@@ -64,7 +61,7 @@ class ImageWriter:
     n_pings : int
         Pings the file will hold.
     variables : iterable of str
-        Names from :data:`VARIABLES` to write.
+        Names from :data:`clbeam.io.schema.IMAGE_VARIABLES` to write.
     attrs : dict
         Global attributes (processing parameters).
     """
@@ -72,74 +69,75 @@ class ImageWriter:
     def __init__(self, path, grid: PolarGrid, n_pings: int, variables, attrs: dict | None = None):
         self.path = Path(path)
         self.grid = grid
-        self.n_pings = n_pings
-        self.variables = [v for v in VARIABLES if v in set(variables)]
-        n_a, n_r = grid.shape
-        coords = {
-            "ping": np.arange(n_pings),
-            "angle": ("angle", grid.angles_deg, {"units": "degree", "long_name": "angle from nadir, positive to starboard"}),
-            "range": ("range", grid.ranges_m, {"units": "m", "long_name": "range from the grid centre"}),
-        }
-        per_ping = {
-            "centre_y": ("grid centre y (earth frame, starboard)", "m"),
-            "centre_z": ("grid centre z (earth frame, down)", "m"),
-            "latitude": ("latitude of the ping", "degree_north"),
-            "longitude": ("longitude of the ping", "degree_east"),
-            "heading": ("heading of the ping", "degree"),
-        }
-        data_vars = {}
-        for name in self.variables:
-            long_name, units = VARIABLES[name]
-            dtype = np.int16 if name == "m" else np.float32
-            data_vars[name] = (("ping", "angle", "range"), _lazy_zeros((n_pings, n_a, n_r), dtype),
-                               {"long_name": long_name, "units": units})
-        for name, (long_name, units) in per_ping.items():
-            data_vars[name] = (("ping",), np.full(n_pings, np.nan), {"long_name": long_name, "units": units})
-        ds = xr.Dataset(data_vars, coords=coords, attrs={"clbeam_format": IMAGE_FORMAT, **(attrs or {})})
+        self.n_pings = int(n_pings)
+        unknown = sorted(set(variables) - set(IMAGE_VARIABLES))
+        require(not unknown, ClbeamError, f"image variable '{unknown[0] if unknown else ''}' is unknown, "
+                f"expected some of {', '.join(IMAGE_VARIABLES)}")
+        self.variables = [v for v in IMAGE_VARIABLES if v in set(variables)]
+        self.attrs = {FORMAT_ATTRIBUTE: IMAGE_FORMAT, **(attrs or {})}
         self._zarr = self.path.suffix == ".zarr"
-        if self._zarr:
-            enc = {v: {"chunks": (1, n_a, n_r)} for v in self.variables}
-            ds.to_zarr(self.path, mode="w", compute=False, encoding=enc)
-            self._file = None
-        else:
-            import h5netcdf
+        self._file = self._create_zarr() if self._zarr else self._create_netcdf()
 
-            enc = {v: {"chunksizes": (1, n_a, n_r), "zlib": True, "complevel": 1} for v in self.variables}
-            ds.to_netcdf(self.path, engine="h5netcdf", encoding=enc, compute=False)
-            self._file = h5netcdf.File(self.path, "a")
+    def _template(self) -> xr.Dataset:
+        """Coordinates and per-ping variables (NaN until written)."""
+        coords = {"ping": np.arange(self.n_pings)}
+        for name, values in (("angle", self.grid.angles_deg), ("range", self.grid.ranges_m)):
+            coords[name] = (name, values, IMAGE_COORDS[name].attrs())
+        data = {name: (("ping",), np.full(self.n_pings, np.nan), var.attrs())
+                for name, var in IMAGE_PING_VARIABLES.items()}
+        return xr.Dataset(data, coords=coords, attrs=self.attrs)
+
+    def _create_netcdf(self):
+        import h5netcdf
+
+        self._template().to_netcdf(self.path, engine="h5netcdf")
+        f = h5netcdf.File(self.path, "a")
+        n_a, n_r = self.grid.shape
+        for name in self.variables:
+            v = f.create_variable(name, IMAGE_DIMS, IMAGE_DTYPES[name], chunks=(1, n_a, n_r),
+                                  compression="gzip", compression_opts=1)
+            v.attrs.update(IMAGE_VARIABLES[name].attrs())
+        return f
+
+    def _create_zarr(self):
+        import zarr
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # consolidated metadata is not in the Zarr v3 spec: zarr says so
+            self._template().to_zarr(self.path, mode="w", consolidated=False)
+            root = zarr.open_group(str(self.path), mode="a")
+            n_a, n_r = self.grid.shape
+            for name in self.variables:
+                root.create_array(name, shape=(self.n_pings, n_a, n_r), chunks=(1, n_a, n_r),
+                                  dtype=IMAGE_DTYPES[name], fill_value=0, dimension_names=IMAGE_DIMS,
+                                  attributes=IMAGE_VARIABLES[name].attrs())
+            zarr.consolidate_metadata(str(self.path))
+        return zarr.open_group(str(self.path), mode="r+", use_consolidated=False)
 
     def write(self, index: int, img, *, latitude=None, longitude=None, heading=None) -> None:
         """Write ping ``index``'s images and its grid centre / navigation."""
         arrays = image_arrays(img)
+        missing = [v for v in self.variables if v not in arrays]
+        require(not missing, ClbeamError, f"ping {index}: the image lacks '{missing[0] if missing else ''}'")
         meta = {"centre_y": img.source_yz_m[0], "centre_z": img.source_yz_m[1],
                 "latitude": latitude, "longitude": longitude, "heading": heading}
-        if self._zarr:
-            dvars = {k: (("ping", "angle", "range"), arrays[k][None]) for k in self.variables}
-            dvars.update({k: (("ping",), np.array([np.nan if v is None else v], dtype=np.float64)) for k, v in meta.items()})
-            xr.Dataset(dvars).to_zarr(self.path, region={"ping": slice(index, index + 1)})
-        else:
-            for k in self.variables:
-                self._file.variables[k][index, :, :] = arrays[k]
-            for k, v in meta.items():
-                self._file.variables[k][index] = np.nan if v is None else v
+        target = self._file if self._zarr else self._file.variables
+        for k in self.variables:
+            target[k][index, :, :] = arrays[k]
+        for k, v in meta.items():
+            target[k][index] = np.nan if v is None else v
 
     def close(self) -> None:
         """Flush and close the file."""
-        if self._file is not None:
+        if self._file is not None and not self._zarr:
             self._file.close()
-            self._file = None
+        self._file = None
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.close()
-
-
-def _lazy_zeros(shape, dtype):
-    import dask.array as da
-
-    return da.zeros(shape, dtype=dtype, chunks=(1,) + tuple(shape[1:]))
 
 
 def open_images(path) -> xr.Dataset:
@@ -151,29 +149,10 @@ def open_images(path) -> xr.Dataset:
     except PingFileError as exc:
         raise ClbeamError(str(exc)) from None
     name = Path(path).name
-    require(ds.attrs.get("clbeam_format") == IMAGE_FORMAT, ClbeamError,
-            f"{name}: not a clbeam image file (global attribute clbeam_format is {ds.attrs.get('clbeam_format')!r}, expected '{IMAGE_FORMAT}')")
+    fmt = ds.attrs.get(FORMAT_ATTRIBUTE)
+    require(fmt == IMAGE_FORMAT, ClbeamError, f"{name}: not a clbeam image file (global attribute "
+            f"{FORMAT_ATTRIBUTE} is {fmt!r}, expected '{IMAGE_FORMAT}')")
     require("cf" in ds.variables, ClbeamError, f"{name}: missing variable 'cf' (image with --outputs including cf needed)")
-    for v in ("angle", "range"):
+    for v in IMAGE_COORDS:
         require(v in ds.coords, ClbeamError, f"{name}: missing coordinate '{v}'")
     return ds
-
-
-def write_peaks_csv(rows: list, path: str | os.PathLike) -> Path:
-    """Write peak rows to CSV: :data:`PEAK_COLUMNS` first, then any extra columns."""
-    p = Path(path)
-    extra = sorted({k for r in rows for k in r} - set(PEAK_COLUMNS))
-    cols = list(PEAK_COLUMNS) + extra
-    with open(p, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            # 10 significant digits: latitudes to the centimetre, eastings to the millimetre
-            w.writerow({k: (f"{v:.10g}" if isinstance(v, float) else v) for k, v in r.items()})
-    return p
-
-
-def read_peaks_csv(path: str | os.PathLike) -> list:
-    """Read a peaks CSV back into rows of floats (``ping`` as int)."""
-    with open(path, newline="") as fh:
-        return [{k: (int(v) if k == "ping" else float(v)) for k, v in r.items() if v != ""} for r in csv.DictReader(fh)]

@@ -14,40 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from clbeam.errors import GeometryError, GridError, require
-
-
-def roll_matrix(roll_deg: float) -> np.ndarray:
-    """Rotation about ``x`` taking vessel-frame vectors to the earth frame.
-
-    Parameters
-    ----------
-    roll_deg : float
-        Roll angle in degrees, positive when the starboard side is down.
-
-    Returns
-    -------
-    numpy.ndarray
-        3×3 matrix ``R`` with ``earth = R @ vessel``; a starboard point
-        ``(0, 1, 0)`` goes to ``(0, cos φ, sin φ)``, i.e. down for ``φ > 0``.
-    """
-    phi = np.deg2rad(roll_deg)
-    c, s = np.cos(phi), np.sin(phi)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def to_earth_frame(positions_m: np.ndarray, *, roll_deg: float = 0.0,
-                   heave_m: float = 0.0) -> np.ndarray:
-    """Vessel-frame positions (``(..., 3)`` as ``x, y, z`` in metres) to the earth frame.
-
-    Roll is applied about the frame origin (the array reference point), then
-    heave (metres, positive up) is subtracted from ``z``.
-    """
-    pos = np.asarray(positions_m, dtype=np.float64)
-    out = pos @ roll_matrix(roll_deg).T
-    out[..., 2] -= heave_m
-    return out
-
+from clbeam.errors import GridError, require
 
 #: largest grid :meth:`PolarGrid.regular` builds (the paper's grid has 8.8e6 cells)
 MAX_GRID_CELLS = 2e9
@@ -142,8 +109,3 @@ class PolarGrid:
         return c[0] + self.ranges_m[None, :] * np.sin(th), c[1] + self.ranges_m[None, :] * np.cos(th)
 
 
-def check_positions(name: str, positions_m: np.ndarray) -> None:
-    """Raise :class:`GeometryError` unless ``positions_m`` is a finite ``(..., 3)`` array."""
-    p = np.asarray(positions_m)
-    require(p.shape[-1:] == (3,), GeometryError, f"{name} must have 3 coordinates (x, y, z) per point, got shape {p.shape}")
-    require(bool(np.all(np.isfinite(p))), GeometryError, f"{name} has non-finite coordinates")

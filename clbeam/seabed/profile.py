@@ -32,9 +32,11 @@ import numpy as np
 
 from clbeam import __version__
 from clbeam.errors import OptionError, require
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
-from clbeam.io.pingfile import Ping, PingFile
+from clbeam.io.pingfile import PingFile
+from clbeam.model.geodesy import along_track_m
+from clbeam.model.grid import PolarGrid
+from clbeam.model.ping import Ping
 
 log = logging.getLogger(__name__)
 
@@ -417,18 +419,6 @@ def pool_max(values: np.ndarray, factor: int) -> np.ndarray:
     padded = np.zeros(n, dtype=v.dtype)
     padded[:v.size] = v
     return padded.reshape(-1, factor).max(axis=1)
-
-
-def along_track_m(latitude_deg, longitude_deg) -> np.ndarray:
-    """Cumulative great-circle distance (m) along the pings' positions (haversine,
-    mean earth radius), 0 at the first ping."""
-    from clbeam.sim.simulator import EARTH_RADIUS_M
-
-    lat = np.deg2rad(np.asarray(latitude_deg, dtype=np.float64))
-    lon = np.deg2rad(np.asarray(longitude_deg, dtype=np.float64))
-    h = np.sin(np.diff(lat) / 2) ** 2 + np.cos(lat[:-1]) * np.cos(lat[1:]) * np.sin(np.diff(lon) / 2) ** 2
-    step = 2 * EARTH_RADIUS_M * np.arcsin(np.sqrt(np.clip(h, 0, 1)))
-    return np.concatenate([[0.0], np.cumsum(step)])
 
 
 def _interp_linear(x, xp, fp):

@@ -56,7 +56,6 @@ import json
 import logging
 import math
 import os
-import tomllib
 import types
 import typing
 from dataclasses import dataclass, field
@@ -65,20 +64,21 @@ from pathlib import Path
 import numpy as np
 import scipy.fft
 import scipy.optimize
+import tomllib
 import xarray as xr
 
 from clbeam import __version__
+from clbeam.constants import KNOT_M_S, WATER_SPEED_RANGE_M_S
 from clbeam.errors import ClbeamError, OptionError, require
-from clbeam.model.grid import to_earth_frame
-from clbeam.imaging.raytrace import SoundSpeedProfile, eigenrays
-from clbeam.imaging.signal import lfm_replica
+from clbeam.imaging.geometry import to_earth_frame
+from clbeam.imaging.raytrace import eigenrays
+from clbeam.io.schema import FORMAT_ATTRIBUTE, PING_FORMAT, ping_variable
+from clbeam.model.geodesy import geodesic_direct
+from clbeam.model.pulse import lfm_replica
+from clbeam.model.svp import SoundSpeedProfile
 
 log = logging.getLogger(__name__)
 
-KNOT_M_S = 1852.0 / 3600.0
-"""One knot in m/s."""
-EARTH_RADIUS_M = 6_371_008.8
-"""Mean Earth radius (m) for the local tangent-plane navigation."""
 DB_PER_NEPER = 20.0 / math.log(10.0)
 """Decibels in one neper (amplitude)."""
 
@@ -561,7 +561,6 @@ class Model:
                 f"model.line_spacing_m must be > 0 m, got {self.line_spacing_m}")
 
 
-WATER_SPEED_RANGE_M_S = (1300.0, 1700.0)
 """Sound speeds (m/s) a water column (``sound_speed_m_s``, ``[water]``) may have."""
 
 
@@ -682,8 +681,18 @@ class Scene:
         return d
 
 
-TRUTH_KEYS = ("x", "y", "z", "angle", "seabed_z", "image_y", "image_z", "u")
-"""Per-target truth of :meth:`Simulator.truth`, stored as ``truth_target_<key>``."""
+TRUTH_VARIABLES = {
+    "x": ("m", "target along-track offset from the image plane (0 for lines)"),
+    "y": ("m", "target horizontal range, earth frame, starboard positive"),
+    "z": ("m", "target depth below the transducers' mean depth"),
+    "angle": ("degree", "line heading relative to the track at the image plane"),
+    "seabed_z": ("m", "seabed depth above the target"),
+    "image_y": ("m", "expected image y of the echo (nearest point, same range and cone angle)"),
+    "image_z": ("m", "expected image z of the echo (nearest point, same range and cone angle)"),
+    "u": ("1", "along-track direction cosine of the target's nearest point"),
+}
+"""Per-target truth of :meth:`Simulator.truth`, stored as ``truth_target_<key>``: units and long name."""
+TRUTH_KEYS = tuple(TRUTH_VARIABLES)
 
 _TARGET_KINDS = {"point": PointTarget, "line": LineTarget}
 _TARGET_KINDS_INV = {v: k for k, v in _TARGET_KINDS.items()}
@@ -2008,7 +2017,13 @@ class Simulator:
         (``water_m`` thick, lossless), the sediment (its speed, density,
         linear attenuation and the seabed roughness) down to the sub-bottom,
         and the half-space below (or the sediment as the half-space)."""
-        from clbeam.seabed.forward import Interface, Layer, PowerLawAttenuation, Seabed as LayeredSeabed, water_column
+        from clbeam.seabed.forward import (
+            Interface,
+            Layer,
+            PowerLawAttenuation,
+            water_column,
+        )
+        from clbeam.seabed.forward import Seabed as LayeredSeabed
 
         sb, sub = self.scene.seabed, self.scene.subbottom
         rho_w = 1000.0
@@ -2423,111 +2438,85 @@ class Simulator:
 
     # -- the dataset ---------------------------------------------------------------
     def navigation(self, g: PingGeometry) -> tuple[float, float]:
-        """Latitude and longitude (degree) of ping ``g`` on a local tangent plane."""
+        """Latitude and longitude (degree) of ping ``g``: ``along_m`` from the
+        line's start along its heading on the WGS84 ellipsoid."""
         sv = self.scene.survey
-        hd = math.radians(sv.heading_deg)
-        east, north = g.along_m * math.sin(hd), g.along_m * math.cos(hd)
-        lat = sv.latitude_deg + math.degrees(north / EARTH_RADIUS_M)
-        lon = sv.longitude_deg + math.degrees(east / (EARTH_RADIUS_M * math.cos(math.radians(sv.latitude_deg))))
-        return lat, lon
+        lat, lon = geodesic_direct(sv.latitude_deg, sv.longitude_deg, sv.heading_deg, g.along_m)
+        return float(lat), float(lon)
 
     def dataset(self, *, progress: bool = False) -> xr.Dataset:
         """Every prepared ping as a SPEC §7 dataset (with truth variables)."""
         from tqdm import tqdm
 
-        sc = self.scene
-        n_p, n_c, n_t = len(self.indices), sc.sonar.n_elements, len(sc.targets)
+        n_p, n_c = len(self.indices), self.scene.sonar.n_elements
         samples = np.empty((n_p, n_c, self.n_samples), dtype=np.float32)
-        motion = np.zeros((n_p, 3))
-        nav = np.zeros((n_p, 2))
-        tt = {k: np.full((n_p, n_t), np.nan) for k in TRUTH_KEYS}
-        seabed = np.full(n_p, np.nan)
+        motion, nav = np.zeros((n_p, 3)), np.zeros((n_p, 2))
+        truth = []
         for j, i in enumerate(tqdm(self.indices, desc="simulate", unit="ping", disable=not progress, leave=False)):
             g = self.geometry(int(i))
             samples[j] = self.ping(int(i))
             motion[j] = (g.roll_deg, g.pitch_deg, g.heave_m)
             nav[j] = self.navigation(g)
-            tr = self.truth(g)
-            for k in tt:
-                tt[k][j] = tr["target"][k]
-            seabed[j] = tr["seabed_z"]
-        start = np.datetime64(sc.survey.start_time, "ns")
-        times = start + (self.indices * sc.survey.ping_interval_s * 1e9).astype("timedelta64[ns]")
-        so = sc.sonar
-        ev = self.element_vessel
-        ds = xr.Dataset(
-            {
-                "samples": (("ping", "channel", "sample"), samples,
-                            {"kind": "raw", "units": "1", "long_name": "element pressure re source pressure at 1 m"}),
-                "sample_rate": ((), self.fs, {"units": "Hz", "long_name": "sample rate"}),
-                "t0": (("ping",), np.full(n_p, self.t0), {"units": "s", "long_name": "time of sample 0 after transmit start"}),
-                "element_x": (("channel",), ev[:, 0], {"units": "m", "long_name": "receive element x (forward), vessel frame"}),
-                "element_y": (("channel",), ev[:, 1], {"units": "m", "long_name": "receive element y (starboard), vessel frame"}),
-                "element_z": (("channel",), ev[:, 2], {"units": "m", "long_name": "receive element z (down), vessel frame"}),
-                "source_x": ((), float(self.source_vessel[0]), {"units": "m", "long_name": "transmit acoustic centre x, vessel frame"}),
-                "source_y": ((), float(self.source_vessel[1]), {"units": "m", "long_name": "transmit acoustic centre y, vessel frame"}),
-                "source_z": ((), float(self.source_vessel[2]), {"units": "m", "long_name": "transmit acoustic centre z, vessel frame"}),
-                "sound_speed": (("ping",), np.full(n_p, self.c), {"units": "m/s", "long_name": "isospeed sound speed"}),
-                "roll": (("ping",), motion[:, 0], {"units": "degree", "long_name": "roll, positive starboard down"}),
-                "pitch": (("ping",), motion[:, 1], {"units": "degree", "long_name": "pitch, positive bow up"}),
-                "heave": (("ping",), motion[:, 2], {"units": "m", "long_name": "heave, positive up"}),
-                "heading": (("ping",), np.full(n_p, sc.survey.heading_deg),
-                            {"units": "degree", "long_name": "heading, clockwise from north"}),
-                "latitude": (("ping",), nav[:, 0], {"units": "degree_north", "long_name": "latitude"}),
-                "longitude": (("ping",), nav[:, 1], {"units": "degree_east", "long_name": "longitude"}),
-                "ping_time": (("ping",), times, {"long_name": "time of transmission (UTC)"}),
-                "pulse_f0": ((), so.pulse_f0_hz, {"units": "Hz", "long_name": "LFM start frequency"}),
-                "pulse_f1": ((), so.pulse_f1_hz, {"units": "Hz", "long_name": "LFM end frequency"}),
-                "pulse_duration": ((), so.pulse_duration_s, {"units": "s", "long_name": "LFM length"}),
-                "channel_valid": (("channel",), np.ones(n_c, dtype=bool), {"units": "1", "long_name": "channel is usable"}),
-                "noise_std": ((), self.noise_std, {"units": "1", "long_name": "standard deviation of the added noise per sample"}),
-                "truth_target_x": (("ping", "target"), tt["x"],
-                                   {"units": "m", "long_name": "target along-track offset from the image plane (0 for lines)"}),
-                "truth_target_y": (("ping", "target"), tt["y"],
-                                   {"units": "m", "long_name": "target horizontal range, earth frame, starboard positive"}),
-                "truth_target_z": (("ping", "target"), tt["z"],
-                                   {"units": "m", "long_name": "target depth below the transducers' mean depth"}),
-                "truth_target_angle": (("ping", "target"), tt["angle"],
-                                       {"units": "degree", "long_name": "line heading relative to the track at the image plane"}),
-                "truth_target_seabed_z": (("ping", "target"), tt["seabed_z"],
-                                          {"units": "m", "long_name": "seabed depth above the target"}),
-                "truth_target_image_y": (("ping", "target"), tt["image_y"],
-                                         {"units": "m", "long_name": "expected image y of the echo (nearest point, same range and cone angle)"}),
-                "truth_target_image_z": (("ping", "target"), tt["image_z"],
-                                         {"units": "m", "long_name": "expected image z of the echo (nearest point, same range and cone angle)"}),
-                "truth_target_u": (("ping", "target"), tt["u"],
-                                   {"units": "1", "long_name": "along-track direction cosine of the target's nearest point"}),
-                "truth_seabed_z": (("ping",), seabed, {"units": "m", "long_name": "seabed depth at nadir below the transducers' mean depth"}),
-            },
-            coords={
-                "ping": ("ping", self.indices, {"long_name": "ping index on the line"}),
-                "target": ("target", np.array([t.name for t in sc.targets], dtype=object), {"long_name": "target name"}),
-            },
-            attrs={
-                "clbeam_format": "ping-1",
-                "title": f"clbeam simulation of scene '{sc.name}'",
-                "source": f"clbeam {__version__} clbeam.sim.simulator",
-                "scene": sc.name,
-                "scene_json": json.dumps(sc.to_dict()),
-                "seed": self.seed,
-                "snr_db": "none" if sc.snr_db is None else float(sc.snr_db),
-                "reference_amplitude": self.reference_amplitude(),
-                "target_kinds": ",".join(_TARGET_KINDS_INV[type(t)] for t in sc.targets),
-            },
-        )
+            truth.append(self.truth(g))
+        ds = xr.Dataset({name: ping_variable(name, v) for name, v in self._spec_values(motion, nav).items()},
+                        coords={"ping": ("ping", self.indices, {"long_name": "ping index on the line"})},
+                        attrs=self._attributes())
+        ds["samples"] = ping_variable("samples", samples)
+        ds["samples"].attrs.update(kind="raw", long_name="element pressure re source pressure at 1 m")
         if self.svp is not None:
             ds["sound_speed"].attrs["long_name"] = "sound speed at the transducers (z = 0 of svp_depth)"
-            ds["svp_depth"] = (("svp",), np.array(self.svp.depths_m), {
-                "units": "m", "long_name": "sound-speed profile depth below the transducers' mean depth "
-                                           "(earth-frame z, positive down)"})
-            ds["svp_speed"] = (("svp",), np.array(self.svp.speeds_m_s),
-                               {"units": "m/s", "long_name": "sound-speed profile speed"})
+        return ds.merge(self._truth_dataset(truth))
+
+    def _spec_values(self, motion: np.ndarray, nav: np.ndarray) -> dict:
+        """The SPEC §7 variables of the prepared pings (names of :data:`clbeam.io.schema.PING_VARIABLES`)."""
+        sc, so, n_p = self.scene, self.scene.sonar, len(self.indices)
+        start = np.datetime64(sc.survey.start_time, "ns")
+        ev, sv = self.element_vessel, self.source_vessel
+        values = {
+            "sample_rate": self.fs, "t0": np.full(n_p, self.t0), "sound_speed": np.full(n_p, self.c),
+            "element_x": ev[:, 0], "element_y": ev[:, 1], "element_z": ev[:, 2],
+            "source_x": float(sv[0]), "source_y": float(sv[1]), "source_z": float(sv[2]),
+            "roll": motion[:, 0], "pitch": motion[:, 1], "heave": motion[:, 2],
+            "heading": np.full(n_p, sc.survey.heading_deg), "latitude": nav[:, 0], "longitude": nav[:, 1],
+            "ping_time": start + (self.indices * sc.survey.ping_interval_s * 1e9).astype("timedelta64[ns]"),
+            "pulse_f0": so.pulse_f0_hz, "pulse_f1": so.pulse_f1_hz, "pulse_duration": so.pulse_duration_s,
+            "channel_valid": np.ones(so.n_elements, dtype=bool),
+        }
+        if self.svp is not None:
+            values["svp_depth"], values["svp_speed"] = np.array(self.svp.depths_m), np.array(self.svp.speeds_m_s)
+        return values
+
+    def _attributes(self) -> dict:
+        sc = self.scene
+        return {
+            FORMAT_ATTRIBUTE: PING_FORMAT,
+            "title": f"clbeam simulation of scene '{sc.name}'",
+            "source": f"clbeam {__version__} clbeam.sim",
+            "scene": sc.name,
+            "scene_json": json.dumps(sc.to_dict()),
+            "seed": self.seed,
+            "snr_db": "none" if sc.snr_db is None else float(sc.snr_db),
+            "reference_amplitude": self.reference_amplitude(),
+            "target_kinds": ",".join(_TARGET_KINDS_INV[type(t)] for t in sc.targets),
+        }
+
+    def _truth_dataset(self, truth: list) -> xr.Dataset:
+        """The simulator's truth per ping (targets, seabed, province) in the earth frame."""
+        sc = self.scene
+        tt = {k: np.array([tr["target"][k] for tr in truth], dtype=np.float64).reshape(len(truth), len(sc.targets))
+              for k in TRUTH_KEYS}
+        data = {f"truth_target_{k}": (("ping", "target"), tt[k], {"units": units, "long_name": long_name})
+                for k, (units, long_name) in TRUTH_VARIABLES.items()}
+        data["truth_seabed_z"] = (("ping",), np.array([tr["seabed_z"] for tr in truth], dtype=np.float64),
+                                  {"units": "m", "long_name": "seabed depth at nadir below the transducers' mean depth"})
+        data["noise_std"] = ((), self.noise_std, {"units": "1", "long_name": "standard deviation of the added noise per sample"})
         if self._provinces is not None:
             mz = np.array([self.province_mz(float(i) * sc.survey.step_m) for i in self.indices])
-            ds["truth_province_mz"] = (("ping",), mz, {"units": "phi", "long_name":
-                                                      "grain size of the seabed province under the ship"})
-        return ds
-
+            data["truth_province_mz"] = (("ping",), mz, {"units": "phi", "long_name":
+                                                         "grain size of the seabed province under the ship"})
+        coords = {"ping": ("ping", self.indices),
+                  "target": ("target", np.array([t.name for t in sc.targets], dtype=object), {"long_name": "target name"})}
+        return xr.Dataset(data, coords=coords)
 
 def simulate(scene, *, pings=None, seed: int = 0, progress: bool = False) -> xr.Dataset:
     """Simulate the pings of a scene as a SPEC §7 ping dataset.
@@ -2559,7 +2548,7 @@ def simulate(scene, *, pings=None, seed: int = 0, progress: bool = False) -> xr.
 
 def write(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     """Write a simulated dataset as a ping file: NetCDF4, or Zarr for a
-    ``.zarr`` path (:func:`clbeam.io.pingfile.write_ping_file`)."""
-    from clbeam.io.pingfile import write_ping_file
+    ``.zarr`` path (:func:`clbeam.io.pingwrite.write_ping_file`)."""
+    from clbeam.io.pingwrite import write_ping_file
 
     return write_ping_file(ds, path)

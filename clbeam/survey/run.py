@@ -62,10 +62,12 @@ import numpy as np
 
 from clbeam import __version__
 from clbeam.errors import ClbeamError, OptionError, require
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions, check_grid_fits_memory
-from clbeam.io.images import PEAK_COLUMNS, VARIABLES, ImageWriter, image_arrays
+from clbeam.io.images import ImageWriter, image_arrays
+from clbeam.io.peaks import PEAK_COLUMNS
 from clbeam.io.pingfile import PingFile
+from clbeam.io.schema import image_variables
+from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
 
@@ -315,13 +317,10 @@ class SurveyOptions:
 
     @property
     def image_variables(self) -> list:
-        """Image variables written with ``images=True`` (:data:`clbeam.io.images.VARIABLES` names)."""
+        """Image variables written with ``images=True`` (:func:`clbeam.io.schema.image_variables`)."""
         if not self.images:
             return []
-        out = set(self.imaging.outputs) | {"cf_smooth"}
-        if "sums" in out:
-            out |= {"s_r", "s_i", "q", "m"} | ({"w"} if self.imaging.apodization != "rect" else set())
-        return [v for v in VARIABLES if v in out]
+        return image_variables(self.imaging.outputs, apodized=self.imaging.apodization != "rect")
 
 
 def _axis_summary(a: np.ndarray) -> dict:
@@ -649,7 +648,7 @@ def _iso(t) -> str | None:
 
 def ping_record(img, ping, survey_ping: int, file_index: int) -> dict:
     """The ledger record of one imaged ping: navigation, grid centre and its
-    peaks (the :data:`clbeam.io.images.PEAK_COLUMNS` besides ``ping``)."""
+    peaks (the :data:`clbeam.io.peaks.PEAK_COLUMNS` besides ``ping``)."""
     keys = [k for k in PEAK_COLUMNS if k != "ping"]
     return {
         "ping": survey_ping, "file_index": file_index, "file_ping": ping.index,

@@ -6,10 +6,10 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
+from scenes import dataset
 
 from clbeam.cli.main import main
-from clbeam.io.images import read_peaks_csv
-from scenes import dataset
+from clbeam.io.peaks import read_peaks_csv
 
 TARGETS = [(40 + 5 * i, 10.0 * i) for i in range(3)]  # (range m, angle deg) of dataset()'s pings
 

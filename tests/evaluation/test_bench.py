@@ -2,10 +2,16 @@
 
 import numpy as np
 import pytest
-
-from clbeam.evaluation.bench import intensity_error_db, markdown_table, peak_agreement, run_benchmark, write_report
-from clbeam.model.grid import PolarGrid
 from scenes import point_ping, polar_point
+
+from clbeam.evaluation.bench import (
+    intensity_error_db,
+    markdown_table,
+    peak_agreement,
+    run_benchmark,
+    write_report,
+)
+from clbeam.model.grid import PolarGrid
 
 
 def test_intensity_error_of_a_10_percent_gain_error_is_minus_20_db():

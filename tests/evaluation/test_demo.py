@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from clbeam.evaluation.demo import run_demo, summary_lines
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
-from clbeam.io.pingfile import PingFile, write_ping_file
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
 from clbeam.sim.simulator import load_scene, simulate
 
 

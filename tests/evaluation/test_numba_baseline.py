@@ -1,10 +1,10 @@
 """The benchmark's numba baseline computes what the reference computes."""
 
 import numpy as np
+from scenes import random_input
 
 from clbeam.evaluation.baselines import numba_beamform
 from clbeam.model.grid import PolarGrid
-from scenes import random_input
 
 
 def test_numba_baseline_matches_reference_linear(ref_engine):

@@ -13,16 +13,30 @@ import dataclasses
 import numpy as np
 import pytest
 import xarray as xr
+from scenes import (
+    FS,
+    PULSE,
+    C,
+    bandlimited_noise,
+    ping_dataset,
+    point_ping,
+    polar_point,
+    sbp_elements,
+)
 
-from clbeam.imaging.apodization import (calibration_factors, parse_window, receive_weights, sidelobe_level_db)
-from clbeam.imaging.engine import BeamformInput, get_engine
 from clbeam.errors import OptionError, PingFileError
-from clbeam.model.grid import PolarGrid
+from clbeam.imaging.apodization import (
+    calibration_factors,
+    parse_window,
+    receive_weights,
+    sidelobe_level_db,
+)
+from clbeam.imaging.engine import BeamformInput, get_engine
 from clbeam.imaging.imager import Imager, ImagingOptions
-from clbeam.io.pingfile import PingFile, write_ping_file
 from clbeam.imaging.signal import apply_channel_response
-
-from scenes import C, FS, PULSE, bandlimited_noise, ping_dataset, point_ping, polar_point, sbp_elements
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
 
 # float32 sums of a few channels: relative errors of a few float32 epsilons
 # per channel; 1e-4 leaves a factor ~10 over what 64 channels accumulate

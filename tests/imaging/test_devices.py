@@ -2,8 +2,8 @@
 
 import pytest
 
-from clbeam.imaging.engine import opencl
 from clbeam.errors import DeviceError
+from clbeam.imaging.engine import opencl
 
 
 def test_choose_by_index_name_and_environment(monkeypatch):

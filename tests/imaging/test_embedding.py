@@ -10,12 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenes import dataset, point_ping, polar_point
 
 from clbeam.imaging.engine.opencl import OpenCLEngine
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
-from scenes import point_ping, polar_point
-from scenes import dataset
+from clbeam.model.grid import PolarGrid
 
 ROOT = Path(__file__).parents[2]
 GRID = PolarGrid.regular(range_res_m=0.25, angle_res_deg=0.5, min_range_m=20, max_range_m=90, angles_deg=(-60, 60))

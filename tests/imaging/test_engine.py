@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from scenes import FS, bandlimited_noise, random_input
 
 from clbeam.imaging.engine import INTERP_MODES, BeamformInput
 from clbeam.imaging.engine.opencl import OpenCLEngine
 from clbeam.model.grid import PolarGrid
-from scenes import FS, bandlimited_noise, random_input
 
 KERNEL_MODES = [m for m, spec in INTERP_MODES.items() if spec.kernel_id >= 0]
 EPS32 = np.finfo(np.float32).eps

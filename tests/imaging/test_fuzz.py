@@ -6,12 +6,12 @@ import numpy as np
 import xarray as xr
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scenes import dataset
 
 from clbeam.errors import ClbeamError
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.io.pingfile import PingFile
-from scenes import dataset
+from clbeam.model.grid import PolarGrid
 
 BASE, _ = dataset(n_pings=1)
 VARIABLES = sorted(BASE.data_vars)

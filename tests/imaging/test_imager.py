@@ -4,10 +4,10 @@ import dataclasses
 
 import numpy as np
 import pytest
-
-from clbeam.model.grid import PolarGrid
-from clbeam.imaging.imager import Imager, ImagingOptions
 from scenes import point_ping, polar_point
+
+from clbeam.imaging.imager import Imager, ImagingOptions
+from clbeam.model.grid import PolarGrid
 
 R0, A0 = 120.0, 23.0
 GRID = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, min_range_m=R0 - 4, max_range_m=R0 + 4,

@@ -14,12 +14,24 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from clbeam.model.grid import PolarGrid
-from clbeam.io.images import PEAK_COLUMNS
-from clbeam.imaging.mlh import (MLH_COLUMNS, DetectionScore, compare_on_simulation, default_range_tolerance_m,
-                        detection_rows, main_lobe_u, mlh_peak_rows, parabolic_vertex, pulse_range_resolution_m,
-                        score_detections, suppress_main_lobe_highlights)
+from clbeam.evaluation.scoring import (
+    DetectionScore,
+    compare_on_simulation,
+    score_detections,
+)
+from clbeam.imaging.mlh import (
+    MLH_COLUMNS,
+    default_range_tolerance_m,
+    detection_rows,
+    main_lobe_u,
+    mlh_peak_rows,
+    parabolic_vertex,
+    pulse_range_resolution_m,
+    suppress_main_lobe_highlights,
+)
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
+from clbeam.io.peaks import PEAK_COLUMNS
+from clbeam.model.grid import PolarGrid
 
 # a window at 40 degrees, 95-110 m, on the paper's 0.2 m x 0.1 degree cells
 GRID = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, min_range_m=95.0, max_range_m=110.0,
@@ -307,8 +319,9 @@ def test_clbeam_image_mlh_merges_every_coherence_peak_into_one_detection(tmp_pat
     """Through the command line: each raw coherence peak of the image lands
     in exactly one detection (the n_merged add up to the raw peak count)."""
     from clbeam import cli
-    from clbeam.io.images import open_images, read_peaks_csv
-    from clbeam.io.pingfile import write_ping_file
+    from clbeam.io.images import open_images
+    from clbeam.io.peaks import read_peaks_csv
+    from clbeam.io.pingwrite import write_ping_file
     from clbeam.sim.simulator import load_scene, simulate
 
     ping_file = write_ping_file(simulate(load_scene("line1", pings=1, max_range_m=520)), tmp_path / "p.nc")

@@ -9,9 +9,10 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from clbeam.imaging import raytrace as rt
 from clbeam.errors import ClbeamError, GeometryError, OptionError
+from clbeam.imaging import raytrace as rt
 from clbeam.model.grid import PolarGrid
+from clbeam.model.svp import SoundSpeedProfile, holland_line1_profile
 
 #: receive aperture of the SBP29 class array (m): elements at y in [-1.764, 1.764]
 HALF_APERTURE_M = 1.764
@@ -106,7 +107,7 @@ def cell_grid(ranges, angles):
 # profile
 # ---------------------------------------------------------------------------
 def test_profile_speed_and_jump_sides():
-    prof = rt.SoundSpeedProfile.with_sediment(rt.holland_line1_profile(), 225.0, 1600.0)
+    prof = SoundSpeedProfile.with_sediment(holland_line1_profile(), 225.0, 1600.0)
     assert prof.depths_m.tolist() == [-5.0, 3.0, 225.0, 225.0]
     assert prof.speed(-100.0) == 1522.0 and prof.speed(0.0) == 1522.0
     assert prof.speed(114.0) == pytest.approx(1506.0)
@@ -114,10 +115,10 @@ def test_profile_speed_and_jump_sides():
     assert prof.speed(225.0, side="below") == 1600.0
     assert prof.speed(1e4) == 1600.0
     assert prof.jump_depths_m.tolist() == [225.0]
-    assert rt.SoundSpeedProfile.constant(1500.0).is_constant
-    same = rt.SoundSpeedProfile.with_sediment(rt.SoundSpeedProfile.constant(1490.0), 100.0, 1490.0)
+    assert SoundSpeedProfile.constant(1500.0).is_constant
+    same = SoundSpeedProfile.with_sediment(SoundSpeedProfile.constant(1490.0), 100.0, 1490.0)
     assert same.jump_depths_m.size == 0
-    assert prof == rt.holland_line1_profile(1600.0) and hash(prof) == hash(rt.holland_line1_profile(1600.0))
+    assert prof == holland_line1_profile(1600.0) and hash(prof) == hash(holland_line1_profile(1600.0))
 
 
 @pytest.mark.parametrize("depths, speeds, words", [
@@ -135,14 +136,14 @@ def test_profile_speed_and_jump_sides():
 ])
 def test_bad_profiles_give_one_line_errors(depths, speeds, words):
     with pytest.raises(OptionError) as err:
-        rt.SoundSpeedProfile(depths, speeds)
+        SoundSpeedProfile(depths, speeds)
     msg = str(err.value)
     assert words in msg and "\n" not in msg
     assert isinstance(err.value, ClbeamError)
 
 
 def test_bad_inputs_give_one_line_errors():
-    prof = rt.SoundSpeedProfile.constant(1500.0)
+    prof = SoundSpeedProfile.constant(1500.0)
     with pytest.raises(GeometryError, match="finite"):
         rt.eigenrays(prof, 0.0, [np.nan], [10.0])
     with pytest.raises(GeometryError, match=r"\(n, 2\)"):
@@ -150,7 +151,7 @@ def test_bad_inputs_give_one_line_errors():
     with pytest.raises(OptionError, match="SoundSpeedProfile"):
         rt.travel_time_tables("1500", cell_grid([1.0], [0.0]))
     with pytest.raises(OptionError, match="sediment speed|outside"):
-        rt.SoundSpeedProfile.with_sediment(prof, 100.0, 2500.0)
+        SoundSpeedProfile.with_sediment(prof, 100.0, 2500.0)
 
 
 # ---------------------------------------------------------------------------
@@ -159,7 +160,7 @@ def test_bad_inputs_give_one_line_errors():
 def test_constant_profile_tables_are_straight_rays():
     c = 1500.0
     grid = cell_grid(np.r_[0.0, 0.2, np.linspace(1.0, 1100.0, 57)], np.linspace(-80.0, 80.0, 33))
-    tab = rt.travel_time_tables(rt.SoundSpeedProfile.constant(c), grid, centre_depth_m=3.0)
+    tab = rt.travel_time_tables(SoundSpeedProfile.constant(c), grid, centre_depth_m=3.0)
     r = grid.ranges_m[None, :]
     th = np.deg2rad(grid.angles_deg)[:, None]
     assert tab.reachable.all()
@@ -172,7 +173,7 @@ def test_constant_profile_tables_are_straight_rays():
 
 
 def test_constant_profile_offset_approximation_is_exact():
-    prof = rt.SoundSpeedProfile.constant(1480.0)
+    prof = SoundSpeedProfile.constant(1480.0)
     grid = cell_grid(np.linspace(5.0, 1000.0, 23), np.linspace(-80.0, 80.0, 17))
     tab = rt.travel_time_tables(prof, grid)
     offs = np.array([[-1.764, 0.0], [0.9, -0.3], [1.764, 0.31]])
@@ -190,7 +191,7 @@ def test_constant_profile_offset_approximation_is_exact():
 @pytest.mark.parametrize("c2", [1490.0, 1600.0])
 def test_two_layers_against_brentq_snell(c2):
     h1, c1 = 8.0, 1522.0
-    prof = rt.SoundSpeedProfile([0.0, h1, h1], [c1, c1, c2])
+    prof = SoundSpeedProfile([0.0, h1, h1], [c1, c1, c2])
     rng = np.random.default_rng(1)
     y = np.r_[rng.uniform(-1100, 1100, 60), 0.0, 3.0, -700.0, 1000.0, 5.0]
     z = np.r_[rng.uniform(0.5, 400, 60), 300.0, 8.0, 8.0 + 1e-6, 225.0, 2.0]
@@ -208,7 +209,7 @@ def test_two_layers_against_brentq_snell(c2):
 
 def test_two_layers_tables_against_brentq_snell():
     h1, c1, c2 = 8.0, 1522.0, 1490.0
-    prof = rt.SoundSpeedProfile([-5.0, h1 - 5.0, h1 - 5.0], [c1, c1, c2])
+    prof = SoundSpeedProfile([-5.0, h1 - 5.0, h1 - 5.0], [c1, c1, c2])
     grid = cell_grid(np.linspace(0.2, 1100.0, 40), np.linspace(-80.0, 80.0, 21))
     tab = rt.travel_time_tables(prof, grid)
     y, z = grid.cell_yz()
@@ -232,7 +233,7 @@ def test_linear_gradient_against_ray_equations(c_top, c_bot):
     """Rays launched at given angles, integrated by solve_ivp through a
     constant-gradient layer 0-600 m (and the constant speed below): the
     eigenray to each point they pass gives their time, angle and length."""
-    prof = rt.SoundSpeedProfile([0.0, 600.0], [c_top, c_bot])
+    prof = SoundSpeedProfile([0.0, 600.0], [c_top, c_bot])
     c, dc = _linear(c_top, c_bot, 0.0, 600.0)
     stops = [20.0, 150.0, 400.0, 599.0, 800.0]
     thetas = [0.0, 0.3, 0.8, 1.1, 1.3] if c_bot < c_top else [0.0, 0.3, 0.6, 0.8]
@@ -251,7 +252,7 @@ def test_linear_gradient_against_ray_equations(c_top, c_bot):
 def test_paper_profile_tables_against_ray_equations():
     """Mixed layer, gradient and constant speed below (kinks at 3 and 225 m):
     table cells on rays integrated by solve_ivp."""
-    prof = rt.holland_line1_profile()
+    prof = holland_line1_profile()
     g = -32.0 / 222.0
 
     def c(z):
@@ -279,7 +280,7 @@ def test_paper_profile_tables_against_ray_equations():
 def test_turning_rays_make_targets_unreachable_not_wrong():
     """Speed increasing with depth: the ray launched so that it turns at depth
     z reaches X_max(z); beyond it the target needs a turning point."""
-    prof = rt.SoundSpeedProfile([0.0, 1000.0], [1480.0, 1540.0])
+    prof = SoundSpeedProfile([0.0, 1000.0], [1480.0, 1540.0])
     c, dc = _linear(1480.0, 1540.0, 0.0, 1000.0)
     z = 200.0
     x_turn = ivp_turning_offset(c, dc, math.asin(1480.0 / c(z)))
@@ -297,7 +298,7 @@ def test_turning_rays_make_targets_unreachable_not_wrong():
 
 
 def test_unreachable_cells_in_tables_and_above_source():
-    prof = rt.SoundSpeedProfile([0.0, 1000.0], [1480.0, 1700.0])
+    prof = SoundSpeedProfile([0.0, 1000.0], [1480.0, 1700.0])
     grid = cell_grid(np.linspace(0.0, 1100.0, 56), np.linspace(-90.0, 90.0, 91))
     tab = rt.travel_time_tables(prof, grid)
     assert not tab.reachable.all() and tab.reachable[:, 0].all()
@@ -317,7 +318,7 @@ def test_unreachable_cells_in_tables_and_above_source():
     x_max = np.sqrt(1 - (1480.0 / c_z) ** 2) * c_z / 0.22
     np.testing.assert_array_equal(tab.reachable[i88], grid.ranges_m * math.sin(math.radians(88.0)) <= x_max)
     # a constant speed reaches level cells by a horizontal ray
-    flat = rt.travel_time_tables(rt.SoundSpeedProfile.constant(1500.0), grid)
+    flat = rt.travel_time_tables(SoundSpeedProfile.constant(1500.0), grid)
     assert flat.reachable.all()
     np.testing.assert_allclose(flat.time_s[-1], grid.ranges_m / 1500.0, rtol=1e-15)
     # targets above the source or level with it (distinct) are unreachable
@@ -331,7 +332,7 @@ def test_unreachable_cells_in_tables_and_above_source():
 # element times: exact eigenrays, reciprocity, simulator use
 # ---------------------------------------------------------------------------
 def test_element_travel_times_reciprocity_and_reference():
-    prof = rt.holland_line1_profile(1460.2)
+    prof = holland_line1_profile(1460.2)
     elems = np.stack([np.linspace(-1.764, 1.764, 8), np.linspace(-0.2, 0.2, 8)], axis=1)
     rng = np.random.default_rng(3)
     scat = np.stack([rng.uniform(-1000, 1000, 50), rng.uniform(5, 260, 50)], axis=1)
@@ -345,7 +346,7 @@ def test_element_travel_times_reciprocity_and_reference():
 
 
 def test_offset_time_exact_matches_element_times():
-    prof = rt.holland_line1_profile()
+    prof = holland_line1_profile()
     grid = cell_grid(np.linspace(10.0, 1000.0, 7), np.linspace(-70.0, 70.0, 5))
     offs = np.array([[1.0, 0.1], [-1.764, 0.0]])
     ex = rt.offset_time_exact(prof, grid, offs, centre_depth_m=0.5)
@@ -360,7 +361,7 @@ def test_offset_time_exact_matches_element_times():
 # ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def paper_offsets():
-    prof = rt.holland_line1_profile()
+    prof = holland_line1_profile()
     grid = cell_grid(np.r_[np.arange(50.0, 200.0, 2.0), np.arange(200.0, 1100.1, 10.0)],
                      np.arange(-80.0, 80.01, 0.5))
     tab = rt.travel_time_tables(prof, grid)
@@ -392,7 +393,7 @@ def test_offset_approximation_error_over_the_aperture(paper_offsets):
 def test_offset_approximation_with_roll(paper_offsets):
     """Elements rotated by 10 degrees of roll (vertical offsets up to 0.31 m)."""
     tab, offs, _ = paper_offsets
-    prof = rt.holland_line1_profile()
+    prof = holland_line1_profile()
     phi = math.radians(10.0)
     rolled = np.stack([offs[:, 0] * math.cos(phi), offs[:, 0] * math.sin(phi)], axis=1)
     exact = rt.offset_time_exact(prof, tab.grid, rolled)
@@ -411,7 +412,7 @@ def test_offset_delay_is_cancellation_free():
 # positioning error of isospeed imaging
 # ---------------------------------------------------------------------------
 def test_positioning_error_constant_profile():
-    prof = rt.SoundSpeedProfile.constant(1500.0)
+    prof = SoundSpeedProfile.constant(1500.0)
     e = rt.positioning_error(prof, (1000.0, 225.0), 1500.0)
     assert e.error_m < 1e-9 and e.trace_error_m < 1e-9 and abs(e.range_only_horizontal_error_m) < 1e-9
     e = rt.positioning_error(prof, (1000.0, 225.0), 1515.0)
@@ -421,7 +422,7 @@ def test_positioning_error_constant_profile():
 def test_positioning_error_paper_target_at_1km():
     """Seabed target 1 km across, 225 m down, paper profile, imaged at 1500 m/s
     (numbers in docs/raytrace.md)."""
-    prof = rt.holland_line1_profile()
+    prof = holland_line1_profile()
     e = rt.positioning_error(prof, (1000.0, 225.0), 1500.0)
     ray = rt.eigenrays(prof, 0.0, 1000.0, 225.0)
     assert math.hypot(*e.apparent_yz_m) == pytest.approx(1500.0 * float(ray.time_s), rel=1e-12)
@@ -432,11 +433,11 @@ def test_positioning_error_paper_target_at_1km():
     assert 45.0 < e.error_m < 50.0 and e.vertical_error_m < -45.0
     assert abs(e.range_only_horizontal_error_m) < 5.0
     with pytest.raises(GeometryError, match="no direct ray"):
-        rt.positioning_error(rt.SoundSpeedProfile([0.0, 1000.0], [1480.0, 1540.0]), (5000.0, 200.0), 1500.0)
+        rt.positioning_error(SoundSpeedProfile([0.0, 1000.0], [1480.0, 1540.0]), (5000.0, 200.0), 1500.0)
 
 
 def test_eigenrays_broadcast_and_threads():
-    prof = rt.holland_line1_profile(1600.0)
+    prof = holland_line1_profile(1600.0)
     y = np.linspace(-1000, 1000, 40_000).reshape(200, 200)
     z = np.linspace(1.0, 300.0, 200)[None, :]
     one = rt.eigenrays(prof, 0.0, y, z, workers=1)
@@ -449,7 +450,7 @@ def test_eigenrays_broadcast_and_threads():
 def test_unchecked_last_step_is_checked(monkeypatch):
     """With a loose threshold far too large, the final check sends the
     targets whose last step fell short back to Newton: same results."""
-    prof = rt.holland_line1_profile(1600.0)
+    prof = holland_line1_profile(1600.0)
     grid = cell_grid(np.linspace(0.0, 1100.0, 120), np.linspace(-85.0, 85.0, 35))
     ref = rt.travel_time_tables(prof, grid)
     monkeypatch.setattr(rt, "LOOSE_TOL_REL", 0.5)
@@ -460,7 +461,7 @@ def test_unchecked_last_step_is_checked(monkeypatch):
 
 
 def test_targets_not_converged_are_nan_not_wrong(monkeypatch, caplog):
-    prof = rt.holland_line1_profile()
+    prof = holland_line1_profile()
     rng = np.random.default_rng(5)
     y, z = rng.uniform(-1000, 1000, 500), rng.uniform(1.0, 300.0, 500)
     ref = rt.eigenrays(prof, 0.0, y, z)

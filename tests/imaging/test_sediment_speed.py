@@ -6,14 +6,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scenes import profile_point_ping
 
 from clbeam import cli
 from clbeam.errors import OptionError
+from clbeam.imaging.sediment_speed import (
+    refine_maximum,
+    reflector_coherence,
+    scan_sediment_speed,
+)
 from clbeam.model.grid import PolarGrid
-from clbeam.imaging.raytrace import SoundSpeedProfile
-from clbeam.imaging.sediment_speed import reflector_coherence, refine_maximum, scan_sediment_speed
-
-from scenes import profile_point_ping
+from clbeam.model.svp import SoundSpeedProfile
 
 SEABED_M, BELOW_M, SEDIMENT_M_S = 50.0, 8.0, 1600.0
 
@@ -71,8 +74,9 @@ def test_scan_finds_the_sediment_speed_within_one_percent(reflector):
 def test_clbeam_sediment_speed_prints_the_estimate_and_writes_the_scan(reflector, tmp_path, capsys):
     from dataclasses import replace
 
-    from clbeam.io.pingfile import write_ping_file
     from scenes import ping_dataset
+
+    from clbeam.io.pingwrite import write_ping_file
 
     ping, grid = reflector
     path = write_ping_file(ping_dataset(replace(ping, svp=None)), tmp_path / "reflector.nc")

@@ -6,7 +6,8 @@ import scipy.fft
 import scipy.signal
 
 from clbeam.errors import OptionError
-from clbeam.imaging.signal import compress_analytic, lfm_replica, upsample_analytic
+from clbeam.imaging.signal import compress_analytic, upsample_analytic
+from clbeam.model.pulse import lfm_replica
 
 FS = 40000.0
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scenes import FS, bandlimited_noise
 
 from clbeam.imaging.engine import BeamformInput
 from clbeam.model.grid import PolarGrid
-from scenes import FS, bandlimited_noise
 
 C = 1500.0
 
@@ -119,7 +119,10 @@ def test_opencl_equals_reference_on_random_geometry(cl_engine, ref_engine, n_ch,
 
 
 def test_fresnel_expansion_range_meets_its_tolerance():
-    from clbeam.imaging.engine.opencl import FRESNEL_TOLERANCE_SAMPLES, fresnel_min_range_m
+    from clbeam.imaging.engine.opencl import (
+        FRESNEL_TOLERANCE_SAMPLES,
+        fresnel_min_range_m,
+    )
 
     o = np.zeros((64, 3))
     o[:, 1] = np.linspace(-1.764, 1.764, 64)

@@ -8,19 +8,19 @@ import dataclasses
 
 import numpy as np
 import pytest
+from scenes import point_ping, polar_point
 
 from clbeam import cli
-from clbeam.evaluation.demo import score_targets
 from clbeam.errors import OptionError
-from clbeam.model.grid import PolarGrid
+from clbeam.evaluation.demo import score_targets
 from clbeam.imaging.imager import Imager, ImagingOptions
-from clbeam.io.images import read_peaks_csv
-from clbeam.io.pingfile import PingFile, write_ping_file
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth, peak_row
-from clbeam.sim.simulator import load_scene, simulate
 from clbeam.imaging.stacking import PingStack
-
-from scenes import point_ping, polar_point
+from clbeam.io.peaks import read_peaks_csv
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
+from clbeam.sim.simulator import load_scene, simulate
 
 SMALL = PolarGrid.regular(range_res_m=0.2, angle_res_deg=1.0, min_range_m=40, max_range_m=60, angles_deg=(-30, 30))
 

@@ -8,16 +8,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import xarray as xr
+from scenes import FS, bandlimited_noise, ping_dataset, profile_point_ping
 
 from clbeam import cli
-from clbeam.imaging.engine import BeamformInput, get_engine
 from clbeam.errors import OptionError, PingFileError
-from clbeam.model.grid import PolarGrid
+from clbeam.imaging.engine import BeamformInput, get_engine
 from clbeam.imaging.imager import Imager, ImagingOptions, pick_seabed_depth_m
-from clbeam.io.pingfile import PingFile, write_ping_file
-from clbeam.imaging.raytrace import SoundSpeedProfile, holland_line1_profile, travel_time_tables
-
-from scenes import FS, bandlimited_noise, ping_dataset, profile_point_ping
+from clbeam.imaging.raytrace import travel_time_tables
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
+from clbeam.model.svp import SoundSpeedProfile, holland_line1_profile
 
 # float32 sums of 8 channels: a few float32 epsilons per channel, x10 margin
 F32_REL = 1e-4

@@ -1,11 +1,11 @@
 """Figures: the polar-to-raster resampling puts values where the geometry says."""
 
 import numpy as np
+from scenes import point_ping, polar_point
 
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.io.figures import plot_cross_track, polar_to_raster
-from scenes import point_ping, polar_point
+from clbeam.model.grid import PolarGrid
 
 
 def test_raster_pixel_takes_the_value_of_the_polar_cell_under_it():

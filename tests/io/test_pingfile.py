@@ -3,10 +3,11 @@ error for every kind of bad file."""
 
 import numpy as np
 import pytest
+from scenes import dataset
 
 from clbeam.errors import PingFileError
-from clbeam.io.pingfile import PingFile, write_ping_file
-from scenes import dataset
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
 
 
 @pytest.mark.parametrize("form", ["nc", "zarr", "nc-split", "nc-netcdf4"])

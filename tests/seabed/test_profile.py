@@ -13,15 +13,17 @@ import numpy as np
 import pytest
 import segyio
 import xarray as xr
+from scenes import FS, PULSE, C, point_ping
 
 from clbeam.cli import commands
 from clbeam.cli.main import main
 from clbeam.errors import ClbeamError, OptionError
-from clbeam.model.grid import PolarGrid, to_earth_frame
+from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.imager import Imager, ImagingOptions
-from clbeam.io.pingfile import PingFile, write_ping_file
-from clbeam.seabed.profile import TraceAxis, along_track_m, register_profile
-from scenes import C, FS, PULSE, point_ping
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
+from clbeam.seabed.profile import TraceAxis, register_profile
 
 TARGET_R = 75.0  # m, directly below the source (earth frame)
 AMPLITUDE = 2.5
@@ -228,12 +230,6 @@ def test_trace_axis_rounds_to_whole_microseconds_and_milliseconds_and_honours_ma
     assert ax.ranges_m(1490.0)[-1] == pytest.approx(150.0, abs=0.5 * 1490.0 * 25e-6)
     with pytest.raises(OptionError, match="65535"):
         TraceAxis.for_record(sample_rate_hz=40000.0, t0_s=0.0, n_record_samples=70000, sound_speed_m_s=1500.0)
-
-
-def test_along_track_distance_of_one_arc_minute_of_latitude():
-    d = along_track_m([34.0, 34.0 + 1 / 60, 34.0 + 2 / 60], [-119.8, -119.8, -119.8])
-    # great circle along a meridian: R * dphi with the mean earth radius 6371008.8 m
-    np.testing.assert_allclose(d, [0.0, 6371008.8 * np.pi / 10800, 2 * 6371008.8 * np.pi / 10800], rtol=1e-9)
 
 
 # -- bad input ---------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ from scipy.optimize import minimize_scalar
 
 from clbeam.errors import ClbeamError, OptionError
 from clbeam.io.pingfile import PingFile
-from clbeam.imaging.signal import lfm_replica
+from clbeam.model.pulse import lfm_replica
 from clbeam.sim.simulator import (
     Simulator,
     ka_sin_phi,

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from clbeam.seabed.avo import backscatter_strength_db
 from clbeam.errors import OptionError
-from clbeam.imaging.signal import lfm_replica
+from clbeam.model.pulse import lfm_replica
+from clbeam.seabed.avo import backscatter_strength_db
 from clbeam.sim.simulator import Simulator, list_scenes, load_scene, simulate
 
 C, FS, F0, F1 = 1500.0, 40000.0, 2000.0, 9000.0

@@ -26,10 +26,16 @@ import math
 import numpy as np
 import pytest
 
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.io.pingfile import PingFile
-from clbeam.sim.simulator import load_scene, refracted_path, simulate, two_way_sediment_path_m, write
+from clbeam.model.grid import PolarGrid
+from clbeam.sim.simulator import (
+    load_scene,
+    refracted_path,
+    simulate,
+    two_way_sediment_path_m,
+    write,
+)
 
 RANGE_RES_M = 0.2
 ANGLE_RES_DEG = 0.05

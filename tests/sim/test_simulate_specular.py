@@ -17,8 +17,15 @@ import numpy as np
 import pytest
 
 from clbeam.errors import OptionError
-from clbeam.seabed.forward import Interface, Layer, PowerLawAttenuation, Seabed, specular_echoes, water_column
-from clbeam.imaging.signal import lfm_replica
+from clbeam.model.pulse import lfm_replica
+from clbeam.seabed.forward import (
+    Interface,
+    Layer,
+    PowerLawAttenuation,
+    Seabed,
+    specular_echoes,
+    water_column,
+)
 from clbeam.sim.simulator import load_scene, simulate
 
 C, FS = 1500.0, 40000.0

@@ -22,9 +22,19 @@ import scipy.optimize
 import xarray as xr
 
 from clbeam.errors import OptionError
-from clbeam.imaging.raytrace import SoundSpeedProfile, holland_line1_profile
-from clbeam.sim.simulator import (Simulator, Water, _ray_legs, _seabed_ray_legs, _unfold, list_scenes, load_scene,
-                             scene_from_mapping, simulate, write)
+from clbeam.model.svp import SoundSpeedProfile, holland_line1_profile
+from clbeam.sim.simulator import (
+    Simulator,
+    Water,
+    _ray_legs,
+    _seabed_ray_legs,
+    _unfold,
+    list_scenes,
+    load_scene,
+    scene_from_mapping,
+    simulate,
+    write,
+)
 
 FS = 40000.0
 PAPER_DEPTHS = [-5.0, 3.0, 225.0]

@@ -27,13 +27,26 @@ import pytest
 import xarray as xr
 
 from clbeam import cli
+from clbeam.constants import KNOT_M_S
 from clbeam.errors import ClbeamError
-from clbeam.io.images import read_peaks_csv
-from clbeam.io.pingfile import PingFile, write_ping_file
-from clbeam.sim.simulator import KNOT_M_S, load_scene, simulate
+from clbeam.io.peaks import read_peaks_csv
+from clbeam.io.pingfile import PingFile
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.sim.simulator import load_scene, simulate
 from clbeam.survey import run as survey
-from clbeam.survey.run import (LEDGER_DIR, AssociationOptions, SurveyError, associate, describe_objects, finalize_survey,
-                           open_survey, peak_positions, product_paths, to_utm, utm_epsg)
+from clbeam.survey.run import (
+    LEDGER_DIR,
+    AssociationOptions,
+    SurveyError,
+    associate,
+    describe_objects,
+    finalize_survey,
+    open_survey,
+    peak_positions,
+    product_paths,
+    to_utm,
+    utm_epsg,
+)
 
 N_PINGS = 12
 PER_FILE = 4
@@ -106,8 +119,8 @@ def assert_same_survey(a: Path, b: Path, *, images: bool = True) -> None:
 # The survey against the imager, one ping at a time
 # ---------------------------------------------------------------------------
 def test_survey_peaks_equal_the_imagers_peaks_of_each_ping(line, reference):
-    from clbeam.model.grid import PolarGrid
     from clbeam.imaging.imager import Imager, ImagingOptions
+    from clbeam.model.grid import PolarGrid
 
     _, paths = line
     peaks = open_survey(reference, "peaks").load()
@@ -124,7 +137,7 @@ def test_survey_peaks_equal_the_imagers_peaks_of_each_ping(line, reference):
         for col in ("range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db"):
             np.testing.assert_array_equal(got[col].values, [r[col] for r in expected])
         assert set(got["file_index"].values.tolist()) == {k} and set(got["file_ping"].values.tolist()) == {i}
-    # the CSV beside the store holds the same rows, readable by clbeam.io.images.read_peaks_csv
+    # the CSV beside the store holds the same rows, readable by clbeam.io.peaks.read_peaks_csv
     rows = read_peaks_csv(product_paths(reference)["peaks_csv"])
     assert len(rows) == peaks.sizes["peak"]
     np.testing.assert_array_equal([r["cf"] for r in rows], peaks["cf"].values)
@@ -190,8 +203,8 @@ def test_unreadable_ledger_file_and_stray_temporary_are_redone_not_trusted(line,
 
 def _survey_options():
     """The options ``GRID`` and ``--images`` give on the command line."""
-    from clbeam.model.grid import PolarGrid
     from clbeam.imaging.imager import ImagingOptions
+    from clbeam.model.grid import PolarGrid
 
     grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=0.25, min_range_m=200, max_range_m=380,
                              angles_deg=(-60, 60))
@@ -303,7 +316,8 @@ def test_survey_places_every_peak_by_its_pings_heading_and_offset(line, referenc
 def test_pings_without_heading_use_the_course_over_ground(line, tmp_path):
     """The heading variable removed: the course between consecutive pings,
     by hand on the local plane, is atan2(dlon N cos(lat), dlat M) (the
-    simulator moves the ship on a sphere, so this is near, not at, 110)."""
+    simulator moves the ship along a WGS84 geodesic launched at 110 degrees,
+    whose azimuth turns by dlon sin(lat), 1e-4 degree over these pings)."""
     ds, _ = line
     f = write_ping_file(ds.isel(ping=slice(0, 4)).drop_vars("heading"), tmp_path / "nohead.nc")
     out = tmp_path / "nohead.zarr"
@@ -312,7 +326,7 @@ def test_pings_without_heading_use_the_course_over_ground(line, tmp_path):
     dn = np.deg2rad(np.diff(lat)) * meridian_radius_m(lat[0])
     de = np.deg2rad(np.diff(lon)) * prime_vertical_radius_m(lat[0]) * np.cos(np.deg2rad(lat[0]))
     course = np.rad2deg(np.arctan2(de, dn))
-    assert np.ptp(course) < 1e-6
+    assert np.ptp(course) < 1e-3
     heading = open_survey(out)["heading"].values
     np.testing.assert_allclose(heading, course[0], atol=0.01)
 
@@ -521,8 +535,8 @@ def test_a_second_run_on_the_same_output_is_refused_while_the_first_holds_it(lin
 
 
 def test_survey_options_refuse_outputs_without_cf():
-    from clbeam.model.grid import PolarGrid
     from clbeam.imaging.imager import ImagingOptions
+    from clbeam.model.grid import PolarGrid
 
     with pytest.raises(ClbeamError, match="lack 'cf'"):
         survey.SurveyOptions(grid=PolarGrid.regular(max_range_m=10), imaging=ImagingOptions(outputs=("intensity",)))
@@ -535,8 +549,8 @@ def test_an_input_given_twice_is_refused(line):
 
 
 def test_progress_bar_counts_every_pending_ping_once(line, tmp_path):
-    from clbeam.model.grid import PolarGrid
     from clbeam.imaging.imager import ImagingOptions
+    from clbeam.model.grid import PolarGrid
 
     _, paths = line
     bars = []

@@ -17,9 +17,19 @@ from importlib import resources
 import numpy as np
 
 from clbeam.errors import DeviceError, GridError, OptionError, require
+from clbeam.imaging.engine.common import (
+    BeamformInput,
+    InterpMode,
+    Sums,
+    baseband,
+    carrier_phase,
+    cell_windows,
+    check_outputs,
+    check_record_length,
+    interp_mode,
+    range_bases,
+)
 from clbeam.model.grid import PolarGrid
-from clbeam.imaging.engine.common import (BeamformInput, InterpMode, Sums, baseband, carrier_phase, cell_windows, check_outputs,
-                     check_record_length, interp_mode, range_bases)
 
 log = logging.getLogger(__name__)
 

@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from clbeam.model.grid import PolarGrid
 from clbeam.imaging.engine.common import (
-    check_record_length,
     EXACT_HALF_WIDTH,
     BeamformInput,
     InterpMode,
@@ -20,9 +18,11 @@ from clbeam.imaging.engine.common import (
     baseband,
     carrier_phase,
     check_outputs,
+    check_record_length,
     interp_mode,
     user_windows,
 )
+from clbeam.model.grid import PolarGrid
 
 #: cells per block: bounds the reference's memory to a few hundred MB
 BLOCK_CELLS = 1 << 18

@@ -18,7 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from clbeam.errors import OptionError, require
-from clbeam.seabed.avo.response import DEFAULT_INCIDENCE_DEG, ResponseOptions, angular_responses
+from clbeam.seabed.avo.response import (
+    DEFAULT_INCIDENCE_DEG,
+    ResponseOptions,
+    angular_responses,
+)
 from clbeam.seabed.avo.stack import DEFAULT_PINGS_PER_PATCH, stack_sides
 from clbeam.seabed.avo.table import survey_records, write_csv
 
@@ -54,7 +58,11 @@ def write_figures(folder, patches, rows, *, frequency_hz=None, sound_speed_m_s: 
     """
     from clbeam.seabed.avo.attributes import angular_attributes
     from clbeam.seabed.avo.model import backscatter_strength_db
-    from clbeam.seabed.avo.plot import plot_along_track, plot_angular_response, plot_gradient_intercept
+    from clbeam.seabed.avo.plot import (
+        plot_along_track,
+        plot_angular_response,
+        plot_gradient_intercept,
+    )
     from clbeam.seabed.avo.sediment import sediment_from_grain_size
 
     out = Path(folder)

@@ -34,10 +34,22 @@ import numpy as np
 from scipy import optimize
 
 from clbeam.errors import OptionError, require
-from clbeam.seabed.avo.attributes import FAR_RANGE_DEG, NEAR_RANGE_DEG, angular_attributes
+from clbeam.seabed.avo.attributes import (
+    FAR_RANGE_DEG,
+    NEAR_RANGE_DEG,
+    angular_attributes,
+)
 from clbeam.seabed.avo.model import DEFAULT_SOUND_SPEED_M_S, backscatter_strength_db
-from clbeam.seabed.avo.sediment import (MZ_MAX, MZ_MIN, SedimentParams, density_ratio, loss_parameter,
-                       sound_speed_ratio, spectral_strength_cm4, volume_parameter)
+from clbeam.seabed.avo.sediment import (
+    MZ_MAX,
+    MZ_MIN,
+    SedimentParams,
+    density_ratio,
+    loss_parameter,
+    sound_speed_ratio,
+    spectral_strength_cm4,
+    volume_parameter,
+)
 
 #: Bounds of log10(w2 / cm^4) and log10(sigma2).
 LOG10_W2_BOUNDS = (-4.5, -1.0)

@@ -15,8 +15,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from clbeam.seabed.avo.attributes import (FAR_INTERCEPT_DEG, FAR_RANGE_DEG, NEAR_INTERCEPT_DEG,  # noqa: E402
-                         NEAR_RANGE_DEG, OUTER_RANGE_DEG, AngularAttributes)
+from clbeam.seabed.avo.attributes import (  # noqa: E402
+    FAR_INTERCEPT_DEG,
+    FAR_RANGE_DEG,
+    NEAR_INTERCEPT_DEG,
+    NEAR_RANGE_DEG,
+    OUTER_RANGE_DEG,
+    AngularAttributes,
+)
 
 #: Colour of the background trend line (figure 2).
 TREND_COLOR = "#d62728"

@@ -62,9 +62,8 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from clbeam.errors import ClbeamError, OptionError, require
+from clbeam.model.geodesy import along_track_m
 
-EARTH_RADIUS_M = 6_371_008.8
-"""Mean Earth radius (m), for along-track distances from latitude/longitude."""
 DEFAULT_INCIDENCE_DEG = np.arange(0.5, 85.0, 1.0)
 """Default bin centres: 1° bins from 0 to 85° incidence."""
 MAX_SLOPE_DEG = 10.0
@@ -540,8 +539,8 @@ def ping_response(intensity, angles_deg, ranges_m, incidence_deg=DEFAULT_INCIDEN
 def along_track_positions_m(latitude_deg, longitude_deg, *, ping_spacing_m: float = 1.0) -> np.ndarray:
     """Along-track position of each ping (m) from navigation.
 
-    Cumulative distance between consecutive positions on
-    the local tangent plane (``dN = R dlat``, ``dE = R cos(lat) dlon``).
+    Cumulative geodesic distance between consecutive positions on the
+    WGS84 ellipsoid (:func:`clbeam.model.geodesy.along_track_m`).
     When any position is missing: ping index x ``ping_spacing_m``.
 
     Parameters
@@ -560,10 +559,7 @@ def along_track_positions_m(latitude_deg, longitude_deg, *, ping_spacing_m: floa
     lon = np.asarray(longitude_deg, dtype=np.float64)
     if lat.size == 0 or not (np.all(np.isfinite(lat)) and np.all(np.isfinite(lon))):
         return np.arange(lat.size, dtype=np.float64) * float(ping_spacing_m)
-    lat_r, lon_r = np.deg2rad(lat), np.deg2rad(lon)
-    dn = np.diff(lat_r) * EARTH_RADIUS_M
-    de = np.diff(lon_r) * EARTH_RADIUS_M * np.cos(0.5 * (lat_r[1:] + lat_r[:-1]))
-    return np.concatenate([[0.0], np.cumsum(np.hypot(dn, de))])
+    return along_track_m(lat, lon)
 
 
 def angular_responses(images, incidence_deg=DEFAULT_INCIDENCE_DEG, options: ResponseOptions | None = None, *,

@@ -16,7 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from clbeam.errors import OptionError, require
-from clbeam.seabed.avo.attributes import AngularAttributes, angular_attributes, background_trend, fluid_factor
+from clbeam.seabed.avo.attributes import (
+    AngularAttributes,
+    angular_attributes,
+    background_trend,
+    fluid_factor,
+)
 from clbeam.seabed.avo.inversion import InversionResult, invert_response
 from clbeam.seabed.avo.stack import Patch
 

@@ -12,17 +12,67 @@ from a compressed trace (:mod:`.inversion`).  :mod:`.cli` holds the
 ``clbeam forward`` subcommand.
 """
 
-from clbeam.seabed.forward.attenuation import (DB_TO_NP, LinearAttenuation, PowerLawAttenuation, as_linear, attenuation_np_per_m,
-                          linearise_attenuation)
-from clbeam.seabed.forward.config import BUNDLED, LayoutFileError, load_seabed, seabed_from_dict, table2_layout
-from clbeam.seabed.forward.inversion import EchoEstimate, InversionResult, LayerEstimate, UnresolvableError, invert_trace
-from clbeam.seabed.forward.layers import Interface, Layer, Seabed, layer_from_grain_size, water_column
-from clbeam.seabed.forward.reflection import fluid_interface, rayleigh_reflection, snell_cosines
-from clbeam.seabed.forward.response import EchoSet, echo_times, layer_echoes, specular_echoes, transfer_function
-from clbeam.seabed.forward.roughness import (rayleigh_parameter, reflection_roughness_factor, transmission_parameter,
-                        transmission_roughness_factor)
-from clbeam.seabed.forward.trace import CHIRPS, HIGH_CHIRP, LOW_CHIRP, Chirp, ForwardTrace, compress_circular, simulate_trace
-from clbeam.seabed.forward.transition import transition_coefficients, transition_reflection_drop_db, transition_threshold
+from clbeam.seabed.forward.attenuation import (
+                          DB_TO_NP,
+                          LinearAttenuation,
+                          PowerLawAttenuation,
+                          as_linear,
+                          attenuation_np_per_m,
+                          linearise_attenuation,
+)
+from clbeam.seabed.forward.config import (
+                          BUNDLED,
+                          LayoutFileError,
+                          load_seabed,
+                          seabed_from_dict,
+                          table2_layout,
+)
+from clbeam.seabed.forward.inversion import (
+                          EchoEstimate,
+                          InversionResult,
+                          LayerEstimate,
+                          UnresolvableError,
+                          invert_trace,
+)
+from clbeam.seabed.forward.layers import (
+                          Interface,
+                          Layer,
+                          Seabed,
+                          layer_from_grain_size,
+                          water_column,
+)
+from clbeam.seabed.forward.reflection import (
+                          fluid_interface,
+                          rayleigh_reflection,
+                          snell_cosines,
+)
+from clbeam.seabed.forward.response import (
+                          EchoSet,
+                          echo_times,
+                          layer_echoes,
+                          specular_echoes,
+                          transfer_function,
+)
+from clbeam.seabed.forward.roughness import (
+                          rayleigh_parameter,
+                          reflection_roughness_factor,
+                          transmission_parameter,
+                          transmission_roughness_factor,
+)
+from clbeam.seabed.forward.trace import (
+                          CHIRPS,
+                          HIGH_CHIRP,
+                          LOW_CHIRP,
+                          Chirp,
+                          ForwardTrace,
+                          compress_circular,
+                          simulate_trace,
+)
+from clbeam.seabed.forward.transition import (
+                          transition_coefficients,
+                          transition_reflection_drop_db,
+                          transition_threshold,
+)
 
 __all__ = [
     "DB_TO_NP", "LinearAttenuation", "PowerLawAttenuation", "as_linear", "attenuation_np_per_m",

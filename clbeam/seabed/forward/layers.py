@@ -19,7 +19,11 @@ import math
 from dataclasses import dataclass, field, replace
 
 from clbeam.errors import OptionError, require
-from clbeam.seabed.forward.attenuation import Attenuation, LinearAttenuation, PowerLawAttenuation
+from clbeam.seabed.forward.attenuation import (
+    Attenuation,
+    LinearAttenuation,
+    PowerLawAttenuation,
+)
 
 #: Roughness regimes: Eckart's small roughness (eqs. 5–6) and the paper's
 #: empirical fair roughness (eqs. 7–8).
@@ -214,7 +218,9 @@ def layer_from_grain_size(mz_phi: float, thickness_m: float, *, water_sound_spee
     name : str
         Label; default ``"Mz <value>"``.
     """
-    from clbeam.seabed.avo import sediment as grain  # the same regressions as the AVO inversion
+    from clbeam.seabed.avo import (
+        sediment as grain,  # the same regressions as the AVO inversion
+    )
 
     rho_ratio, nu_ratio = grain.density_ratio(mz_phi), grain.sound_speed_ratio(mz_phi)
     k_p = grain.attenuation_db_per_m_khz(mz_phi)

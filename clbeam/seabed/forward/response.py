@@ -34,7 +34,10 @@ from clbeam.errors import OptionError, require
 from clbeam.seabed.forward.attenuation import DB_TO_NP
 from clbeam.seabed.forward.layers import Seabed
 from clbeam.seabed.forward.reflection import fluid_interface, snell_cosines
-from clbeam.seabed.forward.roughness import reflection_roughness_factor, transmission_roughness_factor
+from clbeam.seabed.forward.roughness import (
+    reflection_roughness_factor,
+    transmission_roughness_factor,
+)
 from clbeam.seabed.forward.transition import transition_coefficients
 
 

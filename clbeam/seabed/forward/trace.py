@@ -19,7 +19,8 @@ import numpy as np
 import scipy.fft
 
 from clbeam.errors import OptionError, require
-from clbeam.imaging.signal import analytic_weights, lfm_replica
+from clbeam.imaging.signal import analytic_weights
+from clbeam.model.pulse import lfm_replica
 from clbeam.seabed.forward.layers import Seabed
 from clbeam.seabed.forward.response import EchoSet, layer_echoes
 

@@ -26,7 +26,11 @@ import numpy as np
 from scipy.optimize import brentq
 
 from clbeam.errors import OptionError, require
-from clbeam.seabed.forward.attenuation import Attenuation, PowerLawAttenuation, attenuation_np_per_m
+from clbeam.seabed.forward.attenuation import (
+    Attenuation,
+    PowerLawAttenuation,
+    attenuation_np_per_m,
+)
 
 
 def _sin_over(kappa, dx: float):

@@ -42,7 +42,7 @@ def avo(argv):
 
 def test_two_provinces_separate_in_the_attributes_at_the_right_place(tmp_path):
     from clbeam.cli.main import main
-    from clbeam.io.pingfile import write_ping_file
+    from clbeam.io.pingwrite import write_ping_file
     from clbeam.sim.simulator import load_scene, simulate
 
     ds = simulate(load_scene("avo2"))

@@ -4,11 +4,12 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
-from clbeam.seabed.avo import attributes as at
 from clbeam.errors import OptionError
+from clbeam.seabed.avo import attributes as at
 
 INC = np.arange(0.5, 85.0, 1.0)  # bins 0.5 ... 84.5 deg incidence (grazing 89.5 ... 5.5)
 

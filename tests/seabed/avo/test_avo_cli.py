@@ -7,12 +7,12 @@ import csv
 
 import numpy as np
 import pytest
+from test_avo_response import northward_track, seabed_ping, write_image_file
 
+from clbeam.errors import ClbeamError
 from clbeam.seabed.avo.cli import register_avo
 from clbeam.seabed.avo.model import backscatter_strength_db
 from clbeam.seabed.avo.table import COLUMNS
-from clbeam.errors import ClbeamError
-from test_avo_response import northward_track, seabed_ping, write_image_file
 
 ANG = np.arange(-70.0, 70.01, 1.0)
 RNG = np.arange(0.0, 310.0, 0.5)

@@ -10,10 +10,15 @@ import math
 import numpy as np
 import pytest
 
+from clbeam.errors import OptionError
 from clbeam.seabed.avo.inversion import invert_attributes, invert_response
 from clbeam.seabed.avo.model import backscatter_strength_db
-from clbeam.seabed.avo.sediment import density_ratio, sound_speed_ratio, spectral_strength_cm4, volume_parameter
-from clbeam.errors import OptionError
+from clbeam.seabed.avo.sediment import (
+    density_ratio,
+    sound_speed_ratio,
+    spectral_strength_cm4,
+    volume_parameter,
+)
 
 F_HZ = 5e3
 INC = np.arange(0.0, 81.0, 1.0)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy import integrate, special
 
+from clbeam.errors import OptionError
 from clbeam.seabed.avo import model as m
 from clbeam.seabed.avo.sediment import SedimentParams, sediment_from_grain_size
-from clbeam.errors import OptionError
 
 MEDIUM_SAND, FINE_SAND, SILT = 1.5, 2.5, 6.0
 

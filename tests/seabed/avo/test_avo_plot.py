@@ -5,7 +5,11 @@ import matplotlib.image as mimage
 import numpy as np
 
 from clbeam.seabed.avo import plot
-from clbeam.seabed.avo.attributes import angular_attributes, background_trend, fluid_factor
+from clbeam.seabed.avo.attributes import (
+    angular_attributes,
+    background_trend,
+    fluid_factor,
+)
 from clbeam.seabed.avo.model import backscatter_strength_db
 
 INC = np.arange(0.0, 81.0, 1.0)

@@ -15,15 +15,24 @@ import math
 import types
 
 import numpy as np
+import pyproj
 import pytest
 
-from clbeam.seabed.avo.model import backscatter_strength_db, lambert_strength_db
-from clbeam.seabed.avo.response import (ResponseOptions, along_track_positions_m, angular_responses,
-                                 francois_garrison_db_per_km, incidence_angle_deg, insonified_area_m2,
-                                 pick_seabed, ping_response, strength_from_intensity_db)
+from clbeam.constants import WGS84_A_M, WGS84_F
 from clbeam.errors import ClbeamError, OptionError
+from clbeam.seabed.avo.model import backscatter_strength_db, lambert_strength_db
+from clbeam.seabed.avo.response import (
+    ResponseOptions,
+    along_track_positions_m,
+    angular_responses,
+    francois_garrison_db_per_km,
+    incidence_angle_deg,
+    insonified_area_m2,
+    pick_seabed,
+    ping_response,
+    strength_from_intensity_db,
+)
 
-EARTH_RADIUS_M = 6_371_008.8
 ANGLES = np.arange(-75.0, 75.01, 0.5)
 RANGES = np.arange(0.0, 420.0, 0.5)
 INC = np.arange(0.5, 85.0, 1.0)
@@ -71,8 +80,10 @@ def write_image_file(path, intensity, angles_deg, ranges_m, *, latitude=None, lo
 
 
 def northward_track(n, spacing_m, lat0=50.0, lon0=-4.0):
-    """Latitude/longitude (deg) of ``n`` pings ``spacing_m`` apart due north."""
-    return lat0 + np.degrees(np.arange(n) * spacing_m / EARTH_RADIUS_M), np.full(n, lon0)
+    """Latitude/longitude (deg) of ``n`` pings ``spacing_m`` apart due north (WGS84, pyproj)."""
+    lon, lat, _ = pyproj.Geod(ellps="WGS84").fwd(np.full(n, lon0), np.full(n, lat0), np.zeros(n),
+                                                 np.arange(n) * spacing_m)
+    return np.asarray(lat), np.full(n, lon0)
 
 
 def lambert(inc):
@@ -201,9 +212,12 @@ def test_options_are_checked():
 def test_along_track_from_navigation_and_without():
     lat, lon = northward_track(5, 2.5)
     assert along_track_positions_m(lat, lon) == pytest.approx([0, 2.5, 5.0, 7.5, 10.0], abs=1e-6)
-    # due east at 60 N: 1e-4 deg of longitude is R cos 60 * 1e-4 * pi/180 = 5.559 m
+    # due east at 60 N: 1e-4 deg of longitude is the parallel's radius N cos 60 times 1e-4 pi/180 = 5.58 m,
+    # N = a / sqrt(1 - e^2 sin^2 60) on WGS84 (the chord differs from the arc by 1e-12)
     e = along_track_positions_m([60.0, 60.0], [0.0, 1e-4])
-    assert e[1] == pytest.approx(EARTH_RADIUS_M * 0.5 * math.radians(1e-4), rel=1e-9)
+    e2 = WGS84_F * (2 - WGS84_F)
+    n_radius = WGS84_A_M / math.sqrt(1 - e2 * math.sin(math.radians(60.0)) ** 2)
+    assert e[1] == pytest.approx(n_radius * 0.5 * math.radians(1e-4), rel=1e-9)
     assert along_track_positions_m([np.nan] * 3, [np.nan] * 3, ping_spacing_m=2.0) == pytest.approx([0, 2, 4])
 
 

@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from clbeam.seabed.avo import sediment as sd
 from clbeam.errors import OptionError
+from clbeam.seabed.avo import sediment as sd
 
 # Handbook sediment table (reference notes): Mz, rho, nu, delta, w2 (cm^4).
 TABLE = [

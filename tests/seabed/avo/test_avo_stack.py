@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from clbeam.seabed.avo import stack as sk
 from clbeam.errors import OptionError
+from clbeam.seabed.avo import stack as sk
 
 INC = np.array([5.0, 30.0, 60.0])
 

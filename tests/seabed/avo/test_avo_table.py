@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
+from clbeam.errors import OptionError
 from clbeam.seabed.avo import attributes as at
 from clbeam.seabed.avo.model import backscatter_strength_db
 from clbeam.seabed.avo.stack import stack_sides
 from clbeam.seabed.avo.table import COLUMNS, survey_records, write_csv
-from clbeam.errors import OptionError
 
 INC = np.arange(0.0, 81.0, 1.0)
 

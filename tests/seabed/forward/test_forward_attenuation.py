@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from clbeam.errors import OptionError
-from clbeam.seabed.forward import LinearAttenuation, PowerLawAttenuation, attenuation_np_per_m, linearise_attenuation
+from clbeam.seabed.forward import (
+    LinearAttenuation,
+    PowerLawAttenuation,
+    attenuation_np_per_m,
+    linearise_attenuation,
+)
 
 # Table 1 rows whose printed linear coefficients are the 1-10 kHz least-squares fit of k_p f^n:
 # (label, k_p dB/m/kHz^n, n, printed k_p', decimals of k_p', printed b, decimals of b).

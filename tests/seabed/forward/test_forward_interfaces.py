@@ -8,9 +8,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clbeam.errors import OptionError
-from clbeam.seabed.forward import (Interface, Layer, Seabed, fluid_interface, layer_echoes, rayleigh_parameter,
-                            rayleigh_reflection, reflection_roughness_factor, snell_cosines,
-                            transmission_parameter, transmission_roughness_factor, water_column)
+from clbeam.seabed.forward import (
+    Interface,
+    Layer,
+    Seabed,
+    fluid_interface,
+    layer_echoes,
+    rayleigh_parameter,
+    rayleigh_reflection,
+    reflection_roughness_factor,
+    snell_cosines,
+    transmission_parameter,
+    transmission_roughness_factor,
+    water_column,
+)
 
 densities = st.floats(800.0, 3000.0)
 speeds = st.floats(1300.0, 3000.0)

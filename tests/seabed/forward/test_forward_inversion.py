@@ -6,8 +6,19 @@ import numpy as np
 import pytest
 
 from clbeam.errors import OptionError
-from clbeam.seabed.forward import (HIGH_CHIRP, LOW_CHIRP, Layer, Seabed, UnresolvableError, compress_circular, echo_times,
-                            invert_trace, simulate_trace, table2_layout, water_column)
+from clbeam.seabed.forward import (
+    HIGH_CHIRP,
+    LOW_CHIRP,
+    Layer,
+    Seabed,
+    UnresolvableError,
+    compress_circular,
+    echo_times,
+    invert_trace,
+    simulate_trace,
+    table2_layout,
+    water_column,
+)
 
 SPEEDS = [1600.0, 1725.0]          # beds 2 and 3 of Table 2, given to turn times into metres
 

@@ -6,11 +6,28 @@ import numpy as np
 import pytest
 
 from clbeam.errors import OptionError
-from clbeam.seabed.forward import (HIGH_CHIRP, LOW_CHIRP, Chirp, Interface, Layer, LayoutFileError, PowerLawAttenuation,
-                            Seabed, compress_circular, echo_times, layer_echoes, layer_from_grain_size, load_seabed,
-                            rayleigh_reflection, seabed_from_dict, simulate_trace, specular_echoes, table2_layout,
-                            water_column)
 from clbeam.imaging.signal import compress_analytic
+from clbeam.seabed.forward import (
+    HIGH_CHIRP,
+    LOW_CHIRP,
+    Chirp,
+    Interface,
+    Layer,
+    LayoutFileError,
+    PowerLawAttenuation,
+    Seabed,
+    compress_circular,
+    echo_times,
+    layer_echoes,
+    layer_from_grain_size,
+    load_seabed,
+    rayleigh_reflection,
+    seabed_from_dict,
+    simulate_trace,
+    specular_echoes,
+    table2_layout,
+    water_column,
+)
 
 
 def stack(*layers, depth=20.0):

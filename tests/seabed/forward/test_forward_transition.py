@@ -8,8 +8,13 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from clbeam.errors import OptionError
-from clbeam.seabed.forward import (PowerLawAttenuation, attenuation_np_per_m, transition_coefficients,
-                            transition_reflection_drop_db, transition_threshold)
+from clbeam.seabed.forward import (
+    PowerLawAttenuation,
+    attenuation_np_per_m,
+    transition_coefficients,
+    transition_reflection_drop_db,
+    transition_threshold,
+)
 
 FIG6 = dict(density_top_kg_m3=1000.0, density_bottom_kg_m3=1500.0, sound_speed_m_s=1500.0)
 FIG6_LOSS = PowerLawAttenuation(0.3, 1.0)     # k_p = 0.3 dB/m/kHz (paper, Fig. 6)

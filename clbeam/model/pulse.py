@@ -1,0 +1,65 @@
+"""The transmit pulse: an LFM description or an explicit waveform, and its replica."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from clbeam.errors import OptionError, require
+
+
+def lfm_replica(*, f0_hz: float, f1_hz: float, duration_s: float, sample_rate_hz: float) -> np.ndarray:
+    """Linear-FM transmit replica (unit amplitude, no taper).
+
+    ``x(t) = cos(2π (f0 t + (f1 - f0) t² / (2 T)))`` for ``0 <= t < T``,
+    sampled at ``t = k / fs``.
+
+    Parameters
+    ----------
+    f0_hz, f1_hz : float
+        Start and end frequencies (Hz).
+    duration_s : float
+        Pulse length ``T`` (s).
+    sample_rate_hz : float
+        Sample rate ``fs`` (Hz).
+    """
+    require(duration_s > 0 and np.isfinite(duration_s), OptionError, f"pulse_duration must be > 0 s, got {duration_s!r}")
+    require(sample_rate_hz > 0, OptionError, f"sample_rate must be > 0 Hz, got {sample_rate_hz!r}")
+    require(0 <= f0_hz < sample_rate_hz / 2 and 0 <= f1_hz < sample_rate_hz / 2, OptionError,
+            f"pulse band {f0_hz:g}-{f1_hz:g} Hz must lie below the Nyquist frequency {sample_rate_hz / 2:g} Hz")
+    n = max(int(round(duration_s * sample_rate_hz)), 1)
+    t = np.arange(n) / sample_rate_hz
+    return np.cos(2 * np.pi * (f0_hz * t + 0.5 * (f1_hz - f0_hz) / duration_s * t * t))
+
+
+@dataclass(frozen=True)
+class Pulse:
+    """Transmit pulse: an LFM description or an explicit waveform.
+
+    Attributes
+    ----------
+    f0_hz, f1_hz, duration_s : float or None
+        LFM start/end frequency (Hz) and length (s).
+    waveform : numpy.ndarray or None
+        Transmit waveform sampled at the ping's sample rate (takes precedence).
+    """
+
+    f0_hz: float | None = None
+    f1_hz: float | None = None
+    duration_s: float | None = None
+    waveform: np.ndarray | None = None
+
+    def replica(self, sample_rate_hz: float) -> np.ndarray:
+        """The transmit replica at ``sample_rate_hz`` (Hz) for pulse compression."""
+        if self.waveform is not None:
+            return np.asarray(self.waveform, dtype=np.float64)
+        return lfm_replica(f0_hz=self.f0_hz, f1_hz=self.f1_hz, duration_s=self.duration_s,
+                           sample_rate_hz=sample_rate_hz)
+
+    @property
+    def centre_frequency_hz(self) -> float | None:
+        """Band centre (Hz) of an LFM pulse, ``None`` for an explicit waveform."""
+        if self.f0_hz is None:
+            return None
+        return 0.5 * (self.f0_hz + self.f1_hz)
