@@ -96,7 +96,7 @@ def stacking_rows(out: Path, pings: int) -> list:
             hits = total = others = 0
             for ping, img in imgs:
                 s = st.add(img)
-                peaks = [peak_row(ping.index, grid.ranges_m[ir], grid.angles_deg[ia], img.source_yz_m,
+                peaks = [peak_row(ping.index, grid.ranges_m[ir], grid.angles_deg[ia], img.centre_yz_m,
                                   s.cf_smooth[ia, ir], 0.0, {}) for ia, ir in s.peaks]
                 sc, oth = score_targets(peaks, ds["truth_target_image_y"].values[ping.index],
                                         ds["truth_target_image_z"].values[ping.index], ds["target"].values, ping.index)
@@ -122,7 +122,7 @@ def svp_rows(out: Path) -> list:
             img = Imager(grid, ImagingOptions(interp="cubic", use_svp=use_svp)).image(ping)
             ia, ir = np.unravel_index(np.argmax(img.intensity), img.intensity.shape)
             th = np.deg2rad(grid.angles_deg[ia])
-            pos = grid.ranges_m[ir] * np.array([np.sin(th), np.cos(th)]) + np.asarray(img.source_yz_m)
+            pos = grid.ranges_m[ir] * np.array([np.sin(th), np.cos(th)]) + np.asarray(img.centre_yz_m)
             errs.append(pos - truth)
         rows.append((str(name), *errs))
     return rows

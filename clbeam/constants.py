@@ -16,6 +16,8 @@ SBP29_BAND_HZ = (2000.0, 9000.0)
 SBP29_CENTRE_FREQUENCY_HZ = 0.5 * (SBP29_BAND_HZ[0] + SBP29_BAND_HZ[1])
 #: LFM pulse length of the reference scene (s)
 SBP29_PULSE_DURATION_S = 0.08
+#: along-track length of the transmit column used: 16 of the 7 m column's 32 elements (m)
+SBP29_TX_LENGTH_M = 3.5
 #: sample rate of the reference scene (Hz)
 SBP29_SAMPLE_RATE_HZ = 40000.0
 

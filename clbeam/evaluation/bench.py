@@ -28,6 +28,7 @@ from clbeam.imaging.engine import get_engine
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
 from clbeam.imaging.signal import upsample_analytic
+from clbeam.io.figures import pyplot
 from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
@@ -245,10 +246,7 @@ def write_report(result: BenchResult, out_dir) -> dict:
 
 def plot_pareto(result: BenchResult, path) -> None:
     """Run time against intensity error, the Pareto front drawn."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(7, 4.5), dpi=120)
     pts = sorted(((r.ms_per_ping, r.intensity_error_db, r.label) for r in result.rows))

@@ -135,8 +135,7 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
             img = imager.image(ping)
             for k, v in img.timings_s.items():
                 t[k] = t.get(k, 0.0) + v
-            writer.write(ping.index, img, latitude=ping.latitude_deg, longitude=ping.longitude_deg,
-                         heading=ping.heading_deg)
+            writer.write(ping.index, img)
             rows.extend(img.peaks)
             # where a straight-ray image shows each pipe (nearest point, refraction), else its crossing
             key = "truth_target_image_y" if "truth_target_image_y" in ds.variables else "truth_target_y"

@@ -16,7 +16,7 @@ import numpy as np
 
 from clbeam.constants import PEAK_THRESHOLD
 from clbeam.imaging.imager import Imager, ImagingOptions
-from clbeam.imaging.mlh import mlh_peak_rows
+from clbeam.imaging.peaks import peak_rows
 from clbeam.io.pingfile import pings_from_dataset
 from clbeam.model.grid import PolarGrid
 from clbeam.sim.simulator import load_scene, simulate
@@ -189,8 +189,8 @@ def compare_on_simulation(scene: str = "line1", *, pings: int = 3, grid: PolarGr
                           ds["truth_target_image_z"].values[ping.index]], axis=1)
         scores["without"] += score_detections(rows_yz(img.peaks), truth, **win)
         for which in ("peak", "lobe"):
-            rows = mlh_peak_rows(ping, img.cf_smooth, img.intensity, grid, img.source_yz_m,
-                                 threshold=threshold, position=which, **options)
+            rows = peak_rows(img.context, img.cf_smooth, img.intensity, grid, threshold=threshold, mlh=True,
+                             position=which, **options)
             scores[which] += score_detections(rows_yz(rows), truth, **win)
         n_peaks += len(img.peaks)
         n_dets += len(rows)

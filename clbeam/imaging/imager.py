@@ -17,7 +17,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from clbeam.errors import ClbeamError, GeometryError, GridError, OptionError, require
+from clbeam.constants import (
+    PEAK_THRESHOLD,
+    SEDIMENT_SPEED_RANGE_M_S,
+    WATER_SPEED_RANGE_M_S,
+)
+from clbeam.errors import GridError, OptionError, require
 from clbeam.imaging.apodization import (
     calibration_factors,
     parse_window,
@@ -26,22 +31,16 @@ from clbeam.imaging.apodization import (
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
 from clbeam.imaging.engine.common import cell_windows, check_outputs
 from clbeam.imaging.geometry import check_positions, to_earth_frame
-from clbeam.imaging.mlh import mlh_peak_rows
-from clbeam.imaging.postprocess import (
-    DEFAULT_THRESHOLD,
-    coherence_peaks,
-    hann_smooth,
-    peak_row,
-)
-from clbeam.imaging.raytrace import eigenrays, travel_time_tables
+from clbeam.imaging.peaks import PingContext, peak_rows
+from clbeam.imaging.postprocess import hann_smooth
+from clbeam.imaging.raytrace import travel_time_tables
+from clbeam.imaging.seabed_band import pick_seabed_depth_m, seabed_window_m
 from clbeam.imaging.signal import compress_analytic, upsample_analytic
-from clbeam.io.peaks import PEAK_COLUMNS
 from clbeam.model.grid import PolarGrid
 from clbeam.model.ping import Ping
 from clbeam.model.svp import SoundSpeedProfile
 
 log = logging.getLogger(__name__)
-
 
 
 @dataclass(frozen=True)
@@ -61,8 +60,10 @@ class ImagingOptions:
         Coherence-peak threshold on the smoothed CF (paper: 0.25).
     sound_speed_m_s : float or None
         Override of the file's sound speed (m/s).
-    precision : str
-        ``"float32"`` or ``"float64"`` kernel arithmetic (OpenCL backend).
+    precision : str or None
+        ``"float32"`` or ``"float64"`` arithmetic; ``None``: the engine's own
+        (float32 on OpenCL, float64 on the reference).  An engine of another
+        precision is refused.
     seabed_band_m : (float, float) or None
         Compute only cells from this far above to this far below the seabed
         (m), e.g. ``(5, 40)``; ``None`` computes the whole grid.
@@ -93,9 +94,9 @@ class ImagingOptions:
     interp: str = "cubic"
     upsample: int = 1
     outputs: tuple = ("intensity", "cf")
-    threshold: float = DEFAULT_THRESHOLD
+    threshold: float = PEAK_THRESHOLD
     sound_speed_m_s: float | None = None
-    precision: str = "float32"
+    precision: str | None = None
     seabed_band_m: tuple | None = None
     seabed_depth_m: float | None = None
     apodization: str = "rect"
@@ -116,12 +117,12 @@ class ImagingOptions:
             require(len(band) == 2 and all(np.isfinite(band)) and band[0] + band[1] > 0, OptionError,
                     f"seabed band must be (above, below) metres with a positive width, got {self.seabed_band_m!r}")
             object.__setattr__(self, "seabed_band_m", band)
-        if self.sediment_speed_m_s is not None:
-            require(1300 <= self.sediment_speed_m_s <= 2000, OptionError,
-                    f"sediment speed must be within 1300-2000 m/s, got {self.sediment_speed_m_s!r}")
-        if self.sound_speed_m_s is not None:
-            require(1300 <= self.sound_speed_m_s <= 1700, OptionError,
-                    f"sound speed must be within 1300-1700 m/s, got {self.sound_speed_m_s!r}")
+        require(self.precision in (None, "float32", "float64"), OptionError,
+                f"precision '{self.precision}' is unknown, expected 'float32' or 'float64'")
+        for name, value, (lo, hi) in (("sediment speed", self.sediment_speed_m_s, SEDIMENT_SPEED_RANGE_M_S),
+                                      ("sound speed", self.sound_speed_m_s, WATER_SPEED_RANGE_M_S)):
+            require(value is None or lo <= value <= hi, OptionError,
+                    f"{name} must be within {lo:g}-{hi:g} m/s, got {value!r}")
 
 
 @dataclass
@@ -139,9 +140,14 @@ class PingImage:
     sums : Sums or None
         Raw sums ``S``, ``Q``, ``M`` (when requested) for stacking pings.
     peaks : list of dict
-        One row per coherence peak (:data:`PEAK_COLUMNS`, plus navigation).
+        One row per coherence peak (:data:`clbeam.io.peaks.PEAK_COLUMNS`, plus navigation).
+    context : PingContext
+        The ping's grid centre, source, navigation and sonar (what its peak
+        rows and its image file need).
     timings_s : dict
         Seconds spent per stage.
+    n_channels_used : int
+        Channels that took part.
     """
 
     ping: int
@@ -151,9 +157,14 @@ class PingImage:
     cf_smooth: np.ndarray | None
     sums: Sums | None
     peaks: list
-    source_yz_m: tuple
+    context: PingContext
     timings_s: dict = field(default_factory=dict)
     n_channels_used: int = 0
+
+    @property
+    def centre_yz_m(self) -> tuple:
+        """Earth-frame grid centre ``(y, z)`` (m) of this ping."""
+        return self.context.centre_yz_m
 
 
 class Imager:
@@ -165,12 +176,13 @@ class Imager:
         Image grid (earth frame, centre at the source unless given).
     options : ImagingOptions, optional
         Mode, outputs, threshold …
-    backend : {"opencl", "reference"}
-        Engine backend.
+    backend : {"opencl", "reference"}, optional
+        Engine backend (default opencl); with ``engine``, it must name the engine's.
     device : str or int, optional
-        OpenCL device (index or name substring).
+        OpenCL device (index or name substring); not with ``engine``.
     engine : object, optional
-        An existing engine to share (e.g. one per device in a server).
+        An existing engine to share (e.g. one per device in a server); its
+        precision must be ``options.precision`` when that is given.
 
     Examples
     --------
@@ -179,13 +191,22 @@ class Imager:
     ...     images = [imager.image(p) for p in f]
     """
 
-    def __init__(self, grid: PolarGrid, options: ImagingOptions | None = None, *, backend: str = "opencl",
+    def __init__(self, grid: PolarGrid, options: ImagingOptions | None = None, *, backend: str | None = None,
                  device=None, engine=None):
         self.grid = grid
-        self.options = options or ImagingOptions()
-        check_grid_fits_memory(grid, self.options)
-        self.engine = engine if engine is not None else get_engine(backend, device=device,
-                                                                   precision=self.options.precision)
+        self.options = opts = options or ImagingOptions()
+        check_grid_fits_memory(grid, opts)
+        if engine is None:
+            engine = get_engine(backend or "opencl", device=device, precision=opts.precision)
+        else:
+            require(device is None, OptionError, "give a device or an engine, not both (the engine has its device)")
+            require(backend in (None, engine.name), OptionError,
+                    f"backend '{backend}' differs from the engine's '{engine.name}'")
+            require(opts.precision in (None, engine.precision), OptionError,
+                    f"precision '{opts.precision}' differs from the engine's '{engine.precision}'")
+        require(engine.name == "reference" or interp_mode(opts.interp).kernel_id >= 0, OptionError,
+                f"interpolation mode '{opts.interp}' exists in the reference backend only; use backend 'reference'")
+        self.engine = engine
         self._tables: dict = {}
 
     # -- preparation ------------------------------------------------------
@@ -290,69 +311,47 @@ class Imager:
         t_start = time.perf_counter()
         inp = self.beamform_input(ping)
         t["compress_s"] = time.perf_counter() - t_start
-        scale_exp = amplitude_exponent(inp.data)
-        if scale_exp:
-            inp = dataclasses.replace(inp, data=inp.data * np.ldexp(1.0, -scale_exp))
         if inp.n_channels == 0:
             log.warning("ping %d: no usable channel; the image is empty", ping.index)
         if range_window_m is None and self.options.seabed_band_m is not None:
-            depth = self.options.seabed_depth_m
-            if depth is None and inp.n_channels:
-                depth = pick_seabed_depth_m(inp, profile=self.water_profile(ping),
-                                            centre_depth_m=float(self.grid.centre(tuple(ping.source_pos_m[1:]))[1]))
-            if depth is None:  # no usable channel: nothing to pick, the image is empty anyway
-                depth = float(self.grid.ranges_m[0])
-            range_window_m = seabed_window_m(self.grid, depth, self.options.seabed_band_m)
+            range_window_m = self._seabed_window(ping, inp)
         check_grid_reaches_record(inp, self.grid)
         t0 = time.perf_counter()
         outs = set(self.options.outputs)
-        sums = self.engine.beamform(inp, self.grid, interp=self.options.interp, outputs=outs | {"intensity"} if "cf" in outs else outs,
+        sums = self.engine.beamform(inp, self.grid, interp=self.options.interp,
+                                    outputs=outs | {"intensity"} if "cf" in outs else outs,
                                     range_window_m=range_window_m)
         t["image_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        # undo the power-of-two normalisation exactly (float64 only where float32 could overflow)
-        intensity = None if sums.intensity is None else rescale(sums.intensity, 2 * scale_exp)
-        sums.intensity = intensity
-        if sums.s is not None:
-            sums.s = sums.s.astype(np.complex128) * np.ldexp(1.0, scale_exp)
-            sums.q = np.ldexp(sums.q.astype(np.float64), 2 * scale_exp)
-        cf = cf_smooth = None
-        peaks = []
-        source_yz = tuple(self.grid.centre(tuple(ping.source_pos_m[1:])))
+        context = PingContext.of_ping(ping, self.grid, self.options.sound_speed_m_s)
+        cf_smooth = peaks = None
         if sums.cf is not None:
-            cf = sums.cf
-            cf_smooth = hann_smooth(cf)
-            peaks = self.peak_rows(ping, cf_smooth, intensity, source_yz)
+            cf_smooth = hann_smooth(sums.cf)
+            peaks = self.peak_rows(context, cf_smooth, sums.intensity)
         t["postprocess_s"] = time.perf_counter() - t0
         return PingImage(ping=ping.index, grid=self.grid,
-                         intensity=intensity if "intensity" in self.options.outputs else None,
-                         cf=cf, cf_smooth=cf_smooth, sums=sums if "sums" in self.options.outputs else None,
-                         peaks=peaks, source_yz_m=source_yz, timings_s=t, n_channels_used=inp.n_channels)
+                         intensity=sums.intensity if "intensity" in outs else None, cf=sums.cf, cf_smooth=cf_smooth,
+                         sums=sums if "sums" in outs else None, peaks=peaks or [], context=context, timings_s=t,
+                         n_channels_used=inp.n_channels)
 
-    def peak_rows(self, ping: Ping, cf_smooth: np.ndarray, intensity: np.ndarray | None, centre_yz) -> list:
-        """Rows of the peaks table for one ping (SPEC §3 step 7)."""
-        g = self.grid
-        if self.options.mlh:
-            return mlh_peak_rows(ping, cf_smooth, intensity, g, centre_yz, threshold=self.options.threshold,
-                                 **mlh_tolerances(ping, g, self.options.sound_speed_m_s or ping.sound_speed_m_s))
-        nav = {"latitude": ping.latitude_deg, "longitude": ping.longitude_deg, "heading": ping.heading_deg}
-        return [peak_row(ping.index, g.ranges_m[ir], g.angles_deg[ia], centre_yz, cf_smooth[ia, ir],
-                         float(intensity[ia, ir]) if intensity is not None else np.nan, nav)
-                for ia, ir in coherence_peaks(cf_smooth, self.options.threshold)]
+    def _seabed_window(self, ping: Ping, inp: BeamformInput) -> np.ndarray:
+        """Per-angle ranges of the seabed band around the given or picked seabed."""
+        depth = self.options.seabed_depth_m
+        if depth is None and inp.n_channels:
+            depth = pick_seabed_depth_m(inp, profile=self.water_profile(ping),
+                                        centre_depth_m=float(self.grid.centre(tuple(ping.source_pos_m[1:]))[1]))
+        if depth is None:  # no usable channel: nothing to pick, the image is empty anyway
+            depth = float(self.grid.ranges_m[0])
+        return seabed_window_m(self.grid, depth, self.options.seabed_band_m)
 
+    def peak_rows(self, context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None) -> list:
+        """Rows of the peaks table for one ping (SPEC §3 step 7) with this imager's threshold and MLH option."""
+        return peak_rows(context, cf_smooth, intensity, self.grid, threshold=self.options.threshold,
+                         mlh=self.options.mlh)
 
-def mlh_tolerances(ping: Ping, grid: PolarGrid, sound_speed_m_s: float) -> dict:
-    """Range tolerance (m) and main-lobe width (direction cosine) of the arcs
-    of :mod:`clbeam.imaging.mlh` from this ping's pulse band and array width (the
-    SBP29 defaults where the pulse is an explicit waveform)."""
-    from clbeam.imaging.mlh import SBP29_BAND_HZ, default_range_tolerance_m, main_lobe_u
-
-    pulse = ping.pulse
-    band = (min(pulse.f0_hz, pulse.f1_hz), max(pulse.f0_hz, pulse.f1_hz)) \
-        if pulse is not None and pulse.f0_hz is not None and pulse.f0_hz != pulse.f1_hz else SBP29_BAND_HZ
-    width = float(np.ptp(ping.element_pos_m[:, 1])) * ping.n_channels / max(ping.n_channels - 1, 1)
-    return {"range_tolerance_m": default_range_tolerance_m(grid, band_hz=band, sound_speed_m_s=sound_speed_m_s),
-            "max_gap_u": main_lobe_u(0.5 * sum(band), max(width, 1e-3), sound_speed_m_s)}
+    def peak_row_builder(self, img: PingImage):
+        """``f(cf_smooth, intensity) -> rows`` for another image of ``img``'s ping (e.g. a stack)."""
+        return lambda cf_smooth, intensity: self.peak_rows(img.context, cf_smooth, intensity)
 
 
 def check_grid_fits_memory(grid: PolarGrid, options: ImagingOptions, *, fraction: float = 0.5) -> None:
@@ -385,70 +384,4 @@ def check_grid_reaches_record(inp: BeamformInput, grid: PolarGrid) -> None:
                         f"reaches ranges {0.5 * c * inp.t0_s:g}-{0.5 * c * t_end:g} m")
 
 
-def pick_seabed_depth_m(inp: BeamformInput, *, below_peak_db: float = 20.0, profile=None,
-                        centre_depth_m: float = 0.0) -> float:
-    """Seabed depth below the grid centre (m) from the first strong return.
-
-    The channels' envelopes are summed; the first sample within
-    ``below_peak_db`` of the strongest is the nadir seabed echo, at two-way
-    time ``t`` and so depth ``c t / 2`` (the array spans metres, the water
-    hundreds: the offsets' effect is below a range cell).  With a
-    sound-speed ``profile`` (depth axis: the grid centre at
-    ``centre_depth_m``) the depth is where the vertical ray's one-way time
-    from the source is ``t / 2``.
-    """
-    env = np.nansum(np.abs(inp.data), axis=0)
-    require(env.size > 0 and np.max(env) > 0, OptionError,
-            "cannot pick the seabed: the ping has no signal; give the seabed depth")
-    k = int(np.argmax(env >= np.max(env) * 10 ** (-below_peak_db / 20)))
-    one_way_s = 0.5 * (inp.t0_s + k / inp.sample_rate_hz)
-    source_z = float(inp.source_offset_m[2])
-    if profile is None:  # measured from the (heaved) source, returned below the grid centre
-        return inp.sound_speed_m_s * one_way_s + source_z
-    z_src = centre_depth_m + source_z
-    z = z_src + np.arange(1, 40001) * (float(np.max(profile.speeds_m_s)) * one_way_s / 40000)
-    t = eigenrays(profile, z_src, np.zeros_like(z), z).time_s
-    return float(np.interp(one_way_s, t, z)) - centre_depth_m
-
-
-def seabed_window_m(grid: PolarGrid, depth_m: float, band_m: tuple) -> np.ndarray:
-    """Per-angle range interval ``(n_angle, 2)`` (m) covering a flat seabed at
-    ``depth_m`` below the grid centre, from ``band_m[0]`` above to
-    ``band_m[1]`` below it: ``R = z / cos(theta)``."""
-    above, below = band_m
-    cos_t = np.cos(np.deg2rad(grid.angles_deg))
-    lo = np.maximum(depth_m - above, 0.0) / cos_t
-    hi = (depth_m + below) / cos_t
-    return np.stack([lo, hi], axis=1)
-
-
-def rescale(values: np.ndarray, exponent: int) -> np.ndarray:
-    """``values * 2**exponent`` exactly: in place in float32 when the largest
-    result stays within ``2^-60 .. 2^120`` (no overflow, and values down to
-    18 orders of magnitude below the largest stay normal), in float64
-    otherwise."""
-    if exponent == 0 or values.size == 0:
-        return values
-    if values.dtype == np.float32:
-        top = float(np.max(values))
-        if top == 0 or (np.isfinite(top) and -60 <= np.frexp(top)[1] + exponent <= 120):
-            return np.ldexp(values, np.int32(exponent), out=values)
-    return np.ldexp(values.astype(np.float64), exponent)
-
-
-def amplitude_exponent(data: np.ndarray) -> int:
-    """Power-of-two exponent ``e`` with ``max |data| / 2^e`` in [0.5, 1).
-
-    Dividing by ``2^e`` is exact, keeps float32 sums far from overflow
-    (|S|^2 of 1e30-amplitude data) and underflow (1e-30), and is undone
-    exactly afterwards; 0 for all-zero or empty data.
-    """
-    if data.size == 0:
-        return 0
-    peak = np.nanmax(np.abs(data)) if np.isfinite(data).any() else 0.0
-    if not np.isfinite(peak) or peak == 0:
-        return 0
-    return int(np.frexp(peak)[1])
-
-
-__all__ = ["Imager", "ImagingOptions", "PingImage", "PEAK_COLUMNS", "ClbeamError", "GeometryError"]
+__all__ = ["Imager", "ImagingOptions", "PingImage", "check_grid_fits_memory", "check_grid_reaches_record"]

@@ -48,19 +48,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from clbeam.constants import SBP29_ARRAY_WIDTH_M, SBP29_BAND_HZ, SOUND_SPEED_M_S
 from clbeam.errors import OptionError, require
-from clbeam.imaging.geometry import to_earth_frame
-from clbeam.imaging.postprocess import DEFAULT_THRESHOLD, coherence_peaks, peak_row
+from clbeam.imaging.postprocess import peak_row
 from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
 
-#: SBP29 pulse band (Hz): 2-9 kHz LFM (SPEC §1)
-SBP29_BAND_HZ = (2000.0, 9000.0)
-#: SBP29 receive array width across-track (m)
-SBP29_ARRAY_WIDTH_M = 3.528
-#: isospeed sound speed of the reference scene (m/s)
-SOUND_SPEED_M_S = 1500.0
 #: half-support of the non-zero taps of the 7-point Hann window (cells)
 HANN_HALF_SUPPORT_CELLS = 2
 #: the lobe fit uses the arc's CF profile down to this fraction of its peak (-1.5 dB)
@@ -134,6 +128,16 @@ def default_range_tolerance_m(grid: PolarGrid, *, band_hz: tuple[float, float] =
 # ---------------------------------------------------------------------------
 # Sub-cell vertex
 # ---------------------------------------------------------------------------
+def arc_tolerances(grid: PolarGrid, *, band_hz: tuple[float, float] = SBP29_BAND_HZ,
+                   array_width_m: float = SBP29_ARRAY_WIDTH_M, sound_speed_m_s: float = SOUND_SPEED_M_S) -> dict:
+    """Range tolerance (m) and main-lobe width (direction cosine) of the arcs
+    of a ping with this pulse band (Hz), array width (m) and sound speed (m/s):
+    the ``range_tolerance_m`` and ``max_gap_u`` of
+    :func:`suppress_main_lobe_highlights`."""
+    return {"range_tolerance_m": default_range_tolerance_m(grid, band_hz=band_hz, sound_speed_m_s=sound_speed_m_s),
+            "max_gap_u": main_lobe_u(0.5 * sum(band_hz), max(array_width_m, 1e-3), sound_speed_m_s)}
+
+
 def parabolic_vertex(f_minus, f_centre, f_plus, *, kind: str = "parabola", max_offset: float = 0.5):
     """Sub-cell offset of a peak from three equally spaced samples (closed form).
 
@@ -577,52 +581,6 @@ def detection_rows(detections: list[ArcDetection], ping: int, intensity: np.ndar
     return rows
 
 
-def mlh_peak_rows(ping, cf_smooth: np.ndarray, intensity: np.ndarray | None, grid: PolarGrid, centre_yz_m, *,
-                  threshold: float = DEFAULT_THRESHOLD, position: str = "lobe", **options) -> list[dict]:
-    """Coherence peaks of one ping with main-lobe highlights merged, as peak rows.
-
-    The drop-in for :meth:`clbeam.imaging.imager.Imager.peak_rows`: coherence peaks
-    above ``threshold``, grouped into arcs about the ping's earth-frame
-    source (roll and heave applied), one row per arc.
-
-    Parameters
-    ----------
-    ping : clbeam.io.pingfile.Ping or int
-        The ping (index, navigation, source position, roll, heave), or just
-        its index (arcs then centred on the grid centre, no navigation).
-    cf_smooth : numpy.ndarray
-        ``(n_angle, n_range)`` smoothed CF.
-    intensity : numpy.ndarray or None
-        ``(n_angle, n_range)`` intensity.
-    grid : PolarGrid
-        The image grid.
-    centre_yz_m : (float, float)
-        Earth-frame grid centre (m) (``PingImage.source_yz_m``).
-    threshold : float
-        Coherence-peak threshold on the smoothed CF.
-    position : {"lobe", "peak"}
-        Where each row puts its detection (:meth:`ArcDetection.position`).
-    **options
-        Passed to :func:`suppress_main_lobe_highlights` (``range_tolerance_m``,
-        ``max_angle_gap_deg``, ``max_gap_u``, ``subcell``, ``lobe_level``).
-
-    Returns
-    -------
-    list of dict
-        :data:`clbeam.io.peaks.PEAK_COLUMNS` (and navigation) plus :data:`MLH_COLUMNS`.
-    """
-    peaks = coherence_peaks(cf_smooth, threshold)
-    if isinstance(ping, (int, np.integer)):
-        index, nav, source = int(ping), None, None
-    else:
-        index = ping.index
-        nav = {"latitude": ping.latitude_deg, "longitude": ping.longitude_deg, "heading": ping.heading_deg}
-        source = tuple(to_earth_frame(ping.source_pos_m, roll_deg=ping.roll_deg, heave_m=ping.heave_m)[1:])
-    options.setdefault("source_yz_m", source)
-    dets = suppress_main_lobe_highlights(peaks, cf_smooth, grid, centre_yz_m=centre_yz_m, **options)
-    return detection_rows(dets, index, intensity, centre_yz_m, nav, position=position)
-
-
 __all__ = ["ArcDetection", "ArcFrame", "LOBE_LEVEL", "MLH_COLUMNS", "POSITIONS", "arc_profile",
            "default_range_tolerance_m", "detection_rows", "group_arcs", "lobe_fit", "main_lobe_u", "make_frame",
-           "mlh_peak_rows", "parabolic_vertex", "pulse_range_resolution_m", "suppress_main_lobe_highlights"]
+           "arc_tolerances", "parabolic_vertex", "pulse_range_resolution_m", "suppress_main_lobe_highlights"]

@@ -7,13 +7,12 @@ import numpy as np
 from skimage.measure import label
 from skimage.morphology import local_maxima
 
+from clbeam.constants import PEAK_THRESHOLD
 from clbeam.errors import OptionError, require
 
 #: 7-point Hann window of the paper, normalised to sum 1
 HANN7 = np.array([0.0, 0.25, 0.75, 1.0, 0.75, 0.25, 0.0]) / 3.0
 
-#: CF threshold for coherence peaks (paper: 0.25; 0.4 for persistence maps)
-DEFAULT_THRESHOLD = 0.25
 
 
 def hann_smooth(cf: np.ndarray, weights: np.ndarray = HANN7) -> np.ndarray:
@@ -46,7 +45,7 @@ def hann_smooth(cf: np.ndarray, weights: np.ndarray = HANN7) -> np.ndarray:
     return out
 
 
-def coherence_peaks(cf_smooth: np.ndarray, threshold: float = DEFAULT_THRESHOLD) -> np.ndarray:
+def coherence_peaks(cf_smooth: np.ndarray, threshold: float = PEAK_THRESHOLD) -> np.ndarray:
     """Coherence peaks: regional maxima of the smoothed CF above a threshold.
 
     Regional maxima follow MATLAB ``imregionalmax`` (8-connectivity): a
@@ -104,16 +103,3 @@ def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float
     return row
 
 
-def peaks_from_images(ds, threshold: float = DEFAULT_THRESHOLD) -> list:
-    """Coherence-peak rows for every ping of an image dataset."""
-    ranges, angles = ds["range"].values, ds["angle"].values
-    rows = []
-    for i in range(ds.sizes["ping"]):
-        cf_s = hann_smooth(ds["cf"].isel(ping=i).values)
-        inten = ds["intensity"].isel(ping=i).values if "intensity" in ds.variables else None
-        centre = tuple(float(ds[v].values[i]) if v in ds.variables else 0.0 for v in ("centre_y", "centre_z"))
-        nav = {k: float(ds[k].values[i]) for k in ("latitude", "longitude", "heading") if k in ds.variables}
-        for ia, ir in coherence_peaks(cf_s, threshold):
-            rows.append(peak_row(int(ds["ping"].values[i]), ranges[ir], angles[ia], centre, cf_s[ia, ir],
-                                 float(inten[ia, ir]) if inten is not None else np.nan, nav))
-    return rows

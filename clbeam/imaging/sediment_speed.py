@@ -144,7 +144,7 @@ def scan_sediment_speed(ping, grid: PolarGrid, *, seabed_depth_m: float, speeds_
         imager = Imager(grid, dataclasses.replace(opts, sediment_speed_m_s=float(c)), backend=backend, engine=engine)
         engine = imager.engine
         img = imager.image(ping)
-        centre_z = float(img.source_yz_m[1])
+        centre_z = float(img.centre_yz_m[1])
         z = np.array([p["z_m"] for p in img.peaks]) - centre_z
         cf = np.array([p["cf"] for p in img.peaks])
         keep = z > seabed_depth_m + seabed_margin_m

@@ -58,7 +58,8 @@ def compress_analytic(samples: np.ndarray, replica: np.ndarray) -> np.ndarray:
     y = scipy.fft.ifft(spec, axis=-1, workers=-1)[..., :n]
     if any_bad:
         # y[k] uses x[k .. k+m-1]: it is corrupted when any of those was bad.
-        hits = np.cumsum(np.concatenate([np.zeros(bad.shape[:-1] + (1,)), bad, np.zeros(bad.shape[:-1] + (m,))], axis=-1), axis=-1)
+        padded = np.concatenate([np.zeros(bad.shape[:-1] + (1,)), bad, np.zeros(bad.shape[:-1] + (m,))], axis=-1)
+        hits = np.cumsum(padded, axis=-1)
         window = hits[..., m:m + n] - hits[..., :n]
         y[window > 0] = np.nan + 1j * np.nan
     return y

@@ -12,7 +12,12 @@ import numpy as np
 from clbeam.model.grid import PolarGrid
 
 
-def _plt():
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (PNG files, no display needed).
+
+    Every figure of clbeam is drawn through this, so importing clbeam never
+    changes the caller's matplotlib backend: it is chosen on first use only.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -71,8 +76,8 @@ def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m
         Window (m) of the CF and peaks panels (the box on the intensity panel);
         default: the seabed band ±40 m across the grid.
     """
-    plt = _plt()
-    grid, c = img.grid, img.source_yz_m
+    plt = pyplot()
+    grid, c = img.grid, img.centre_yz_m
     y0, y1, z0, z1 = image_extent(grid, c)
     if zoom is None:
         zoom = (y0, y1, (seabed_z_m - 40) if seabed_z_m else z0, (seabed_z_m + 40) if seabed_z_m else z1)
@@ -134,7 +139,7 @@ def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m
 def plot_peak_map(rows, path, *, targets=None, title: str = "coherence peaks over the line", threshold: float = 0.4):
     """Persistence map like Holland et al. Figs. 9-10: peaks of all pings by
     cross-track position (y) and ping, coloured by CF."""
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 5), dpi=110, constrained_layout=True)
     sel = [r for r in rows if r["cf"] > threshold]
     if sel:

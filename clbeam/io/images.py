@@ -77,6 +77,7 @@ class ImageWriter:
         self.attrs = {FORMAT_ATTRIBUTE: IMAGE_FORMAT, **(attrs or {})}
         self._zarr = self.path.suffix == ".zarr"
         self._file = self._create_zarr() if self._zarr else self._create_netcdf()
+        self._sonar_written = False
 
     def _template(self) -> xr.Dataset:
         """Coordinates and per-ping variables (NaN until written)."""
@@ -114,18 +115,31 @@ class ImageWriter:
             zarr.consolidate_metadata(str(self.path))
         return zarr.open_group(str(self.path), mode="r+", use_consolidated=False)
 
-    def write(self, index: int, img, *, latitude=None, longitude=None, heading=None) -> None:
-        """Write ping ``index``'s images and its grid centre / navigation."""
+    def write(self, index: int, img) -> None:
+        """Write ping ``index``'s images, grid centre, source, sound speed and navigation.
+
+        ``img`` is a :class:`~clbeam.imaging.imager.PingImage`; its
+        ``context`` (a :class:`~clbeam.imaging.peaks.PingContext`) gives the
+        per-ping values, and the first ping the file's pulse band and array
+        width (global attributes ``pulse_band_hz``, ``array_width_m``).
+        """
         arrays = image_arrays(img)
         missing = [v for v in self.variables if v not in arrays]
         require(not missing, ClbeamError, f"ping {index}: the image lacks '{missing[0] if missing else ''}'")
-        meta = {"centre_y": img.source_yz_m[0], "centre_z": img.source_yz_m[1],
-                "latitude": latitude, "longitude": longitude, "heading": heading}
+        ctx = img.context
+        source = ctx.source_yz_m or (np.nan, np.nan)
+        meta = {"centre_y": ctx.centre_yz_m[0], "centre_z": ctx.centre_yz_m[1], "source_y": source[0],
+                "source_z": source[1], "sound_speed": ctx.sound_speed_m_s, "latitude": ctx.latitude_deg,
+                "longitude": ctx.longitude_deg, "heading": ctx.heading_deg}
         target = self._file if self._zarr else self._file.variables
         for k in self.variables:
             target[k][index, :, :] = arrays[k]
         for k, v in meta.items():
             target[k][index] = np.nan if v is None else v
+        if not self._sonar_written:
+            self._file.attrs["pulse_band_hz"] = [float(b) for b in ctx.band_hz]
+            self._file.attrs["array_width_m"] = float(ctx.array_width_m)
+            self._sonar_written = True
 
     def close(self) -> None:
         """Flush and close the file."""

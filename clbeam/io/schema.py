@@ -115,6 +115,9 @@ IMAGE_DTYPES = {name: (np.int16 if name == "m" else np.float32) for name in IMAG
 IMAGE_PING_VARIABLES: dict[str, Variable] = _table(
     Variable("centre_y", (("ping",),), "m", "grid centre y (earth frame, starboard)"),
     Variable("centre_z", (("ping",),), "m", "grid centre z (earth frame, down)"),
+    Variable("source_y", (("ping",),), "m", "transmit acoustic centre y with roll and heave (earth frame)"),
+    Variable("source_z", (("ping",),), "m", "transmit acoustic centre z with roll and heave (earth frame)"),
+    Variable("sound_speed", (("ping",),), "m/s", "sound speed the ping was imaged with"),
     Variable("latitude", (("ping",),), "degree_north", "latitude of the ping"),
     Variable("longitude", (("ping",),), "degree_east", "longitude of the ping"),
     Variable("heading", (("ping",),), "degree", "heading of the ping"),

@@ -650,56 +650,5 @@ def write_profile(pings_path, segy_path, *, png_path=None, plot: bool = True, ma
                          traces_per_ping=2 if analytic else 1, seconds=time.perf_counter() - t_start)
 
 
-# -- command line --------------------------------------------------------------------
-def cmd_profile(args) -> int:
-    """Run ``clbeam profile`` on parsed arguments; returns the exit status (0).
-
-    Raises :class:`~clbeam.errors.ClbeamError` subclasses on bad input, which
-    the ``clbeam`` entry point prints as one line (exit 2).
-    """
-    from clbeam.cli.main import progress
-
-    res = write_profile(args.pings, args.output, png_path=args.png, max_range_m=args.max_range,
-                        interp=args.interp, analytic=args.analytic, backend=args.backend, device=args.device,
-                        progress=lambda it, total: progress(it, total=total, desc="profile", quiet=args.quiet))
-    if not args.quiet:
-        ax = res.axis
-        print(f"profiled {res.n_pings} ping(s) in {res.seconds:.1f} s: {res.n_pings * res.traces_per_ping} trace(s) "
-              f"of {ax.n_samples} samples ({ax.interval_us} us, delay {ax.delay_ms} ms) -> {res.segy_path}"
-              + (f"; figure -> {res.png_path}" if res.png_path else ""))
-    return 0
-
-
-def register_profile(sub, common) -> None:
-    """Add ``clbeam profile`` to an ``argparse`` subparsers object.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        From ``ArgumentParser.add_subparsers()``.
-    common : callable
-        ``common(parser)`` adds the options every subcommand shares (``-q``).
-    """
-    from clbeam.imaging.engine import INTERP_MODES
-
-    sp = sub.add_parser("profile", help="along-track profile: a vertical beam per ping, as SEG-Y and a figure",
-                        description="Form a vertical (nadir, earth-referenced) beam per ping and write its envelope "
-                                    "|S|/M (or S/M with --analytic) as SEG-Y, with a figure of the profile.")
-    sp.add_argument("pings", metavar="PINGS.nc", help="ping file (NetCDF4 or Zarr, SPEC §7)")
-    sp.add_argument("-o", "--output", required=True, metavar="PROFILE.sgy", help="SEG-Y file to write")
-    sp.add_argument("--max-range", type=float, default=None, metavar="M",
-                    help="largest range (m) of the traces (default: the end of the record)")
-    sp.add_argument("--interp", default="cubic", choices=list(INTERP_MODES),
-                    help="interpolation mode (default cubic); 'exact' runs on the reference backend only")
-    sp.add_argument("--analytic", action="store_true",
-                    help="write the real and imaginary parts of S/M (2 traces per ping) instead of the envelope")
-    sp.add_argument("--png", default=None, metavar="PATH",
-                    help="figure of the profile (default: the SEG-Y path with suffix .png)")
-    sp.add_argument("--backend", default="opencl", choices=["opencl", "reference"], help="imaging engine (default opencl)")
-    sp.add_argument("--device", default=None, help="OpenCL device: index or name substring")
-    common(sp)
-    sp.set_defaults(func=cmd_profile)
-
-
 __all__ = ["TraceAxis", "BeamTrace", "VerticalBeam", "SegyProfileWriter", "ProfileResult", "write_profile",
-           "plot_profile", "register_profile", "cmd_profile"]
+           "plot_profile"]

@@ -653,7 +653,7 @@ def ping_record(img, ping, survey_ping: int, file_index: int) -> dict:
     return {
         "ping": survey_ping, "file_index": file_index, "file_ping": ping.index,
         "latitude_deg": ping.latitude_deg, "longitude_deg": ping.longitude_deg, "heading_deg": ping.heading_deg,
-        "time": _iso(ping.time), "centre_y_m": float(img.source_yz_m[0]), "centre_z_m": float(img.source_yz_m[1]),
+        "time": _iso(ping.time), "centre_y_m": float(img.centre_yz_m[0]), "centre_z_m": float(img.centre_yz_m[1]),
         "n_channels_used": int(img.n_channels_used),
         "peaks": [{k: float(r[k]) for k in keys} for r in img.peaks],
     }
@@ -1566,9 +1566,9 @@ def plot_survey_map(path, *, nav: _Navigation, det_ping, det_cf, det_pos, object
     (black) with its number.  Without navigation the axes are along-track
     distance (ping time x speed) and cross-track offset.
     """
-    from clbeam.io.figures import _plt
+    from clbeam.io.figures import pyplot
 
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 8), dpi=110, constrained_layout=True)
     if nav.all_nav:
         e0, n0 = float(np.nanmin(nav.e)), float(np.nanmin(nav.n))
@@ -1628,110 +1628,8 @@ def open_survey(output, group: str | None = None):
         return xr.open_zarr(p, group=group)
 
 
-# ---------------------------------------------------------------------------
-# Command line
-# ---------------------------------------------------------------------------
-def register_survey(sub, common) -> None:
-    """Add ``clbeam survey`` to the subcommand parsers ``sub``."""
-    from clbeam.cli.main import add_engine_options, add_grid_options
-
-    sp = sub.add_parser("survey", help="image a whole survey into coherence peaks (and images): resumable, parallel",
-                        description="Image every ping of the input files; write the coherence peaks (Zarr, CSV, "
-                                    "GeoJSON), the persistence map and the associated objects; resume after any "
-                                    "interruption.  See docs/survey.md.")
-    sp.add_argument("inputs", nargs="+", metavar="INPUT", help="ping files (NetCDF4 or Zarr, SPEC §7), in survey order")
-    sp.add_argument("-o", "--output", required=True, metavar="OUT.zarr",
-                    help="survey store; products OUT.peaks.csv, OUT.peaks.geojson, OUT.objects.csv, "
-                         "OUT.objects.geojson, OUT.map.png, OUT.persistence.png beside it")
-    add_grid_options(sp)
-    add_engine_options(sp)
-    g = sp.add_argument_group("survey")
-    g.add_argument("--images", action="store_true", help="also write the images (one compressed chunk per ping)")
-    g.add_argument("--workers", type=int, default=None, metavar="N", help="start a local Dask cluster of N processes")
-    g.add_argument("--scheduler", default=None, metavar="ADDRESS", help="use the Dask scheduler at ADDRESS (tcp://host:8786)")
-    g.add_argument("--block-pings", type=int, default=8, metavar="N", help="pings per Dask task (default 8)")
-    g.add_argument("--restart", action="store_true",
-                   help="discard the existing survey output and its products and start again (needed when the "
-                        "parameters differ; a folder that is not a survey output is never removed)")
-    g.add_argument("--stop-on-error", action="store_true",
-                   help="stop at the first unreadable file or ping (default: report it, skip it, go on)")
-    a = sp.add_argument_group("persistence map and objects")
-    a.add_argument("--map-threshold", type=float, default=DEFAULT_MAP_THRESHOLD, metavar="CF",
-                   help="CF threshold of the map and the association (default 0.4, paper Figs. 9-10)")
-    a.add_argument("--link-distance", type=float, default=3.0, metavar="M",
-                   help="largest cross-track separation of detections linked across pings (m, default 3)")
-    a.add_argument("--link-depth", type=float, default=3.0, metavar="M",
-                   help="largest depth difference of linked detections (m, default 3)")
-    a.add_argument("--max-gap", type=int, default=2, metavar="N", help="pings an object may skip (default 2)")
-    a.add_argument("--min-pings", type=int, default=5, metavar="N", help="pings an object needs (default 5)")
-    a.add_argument("--speed", type=float, default=None, metavar="M/S",
-                   help="ship speed (m/s) for the along-track distance of pings without navigation")
-    common(sp)
-    sp.set_defaults(func=cmd_survey)
-
-
-def options_from_survey_args(args, scan: ScanResult) -> SurveyOptions:
-    """:class:`SurveyOptions` from parsed ``clbeam survey`` arguments."""
-    from clbeam.cli.main import grid_from_args, options_from_args
-
-    return SurveyOptions(
-        grid=grid_from_args(args, scan.max_range_m), imaging=options_from_args(args), backend=args.backend,
-        device=args.device, images=args.images, block_pings=args.block_pings,
-        association=AssociationOptions(threshold=args.map_threshold, link_distance_m=args.link_distance,
-                                       depth_tolerance_m=args.link_depth, max_gap_pings=args.max_gap,
-                                       min_pings=args.min_pings),
-        speed_m_s=args.speed)
-
-
-def summary_lines(res: SurveyResult) -> list:
-    """The summary ``clbeam survey`` prints."""
-    pr = res.products
-    lines = [f"survey: {res.n_pings} ping(s); {res.n_imaged} imaged now, {res.n_done_before} done before"
-             + (f", {pr.n_imaged} in the output" if pr else "")
-             + (f"; {res.pings_per_s:.2f} pings/s" if res.n_imaged else "")
-             + (f" on {res.workers} Dask worker(s)" if res.workers else "")]
-    if res.n_timed:
-        split = ", ".join(f"{k[:-2]} {v * 1e3:.1f}" for k, v in res.time_per_ping_s.items())
-        lines.append(f"time per ping (ms): {split}")
-    if pr:
-        f = pr.files
-        lines.append(f"peaks: {pr.n_peaks} -> {res.output.name} (group peaks), {f['peaks_csv'].name}"
-                     + (f", {f['peaks_geojson'].name}" if pr.navigation else " (no navigation: no GeoJSON)"))
-        lines.append(f"objects: {len(pr.objects)} from {pr.n_detections} detections -> {f['objects_csv'].name}"
-                     + (f", {f['objects_geojson'].name}" if pr.navigation else "")
-                     + f"; map -> {f['map_png'].name}, {f['persistence_png'].name}")
-    if res.failures:
-        by_file = {}
-        for fl in res.failures:
-            by_file.setdefault(fl.file, []).append(fl)
-        for name, fls in by_file.items():
-            if fls[0].ping is None:
-                lines.append(f"skipped: {name}: {fls[0].message}")
-            else:
-                lines.append(f"skipped: {name}: {len(fls)} ping(s) not imaged (ping {fls[0].ping}: {fls[0].message})")
-        lines.append("incomplete: rerun the same command to retry the pings not imaged")
-    return lines
-
-
-def cmd_survey(args) -> int:
-    """``clbeam survey``: returns 0 when every ping is imaged, 1 when some
-    input was skipped (listed in the summary)."""
-    from clbeam.cli.main import progress
-
-    scan = scan_inputs(args.inputs, stop_on_error=args.stop_on_error)
-    require(bool(scan.files), SurveyError,
-            "no readable input file" + (f" ({'; '.join(map(str, scan.failures))})" if scan.failures else ""))
-    options = options_from_survey_args(args, scan)
-    res = run_survey(scan, args.output, options, workers=args.workers, scheduler=args.scheduler,
-                     restart=args.restart, stop_on_error=args.stop_on_error,
-                     progress=lambda total: progress(None, total=total, desc="survey", quiet=args.quiet))
-    if not args.quiet or res.failures:
-        print("\n".join(summary_lines(res)))
-    return 0 if res.complete else 1
-
-
 __all__ = ["AssociationOptions", "BlockTask", "Failure", "InputFile", "ScanResult", "SurveyError", "SurveyOptions",
-           "SurveyProducts", "SurveyResult", "associate", "cmd_survey", "course_over_ground_deg", "describe_objects",
+           "SurveyProducts", "SurveyResult", "associate", "course_over_ground_deg", "describe_objects",
            "done_pings", "finalize_survey", "ledger_path", "open_survey", "peak_positions", "plot_survey_map",
-           "process_block", "product_paths", "register_survey", "run_survey", "scan_inputs", "summary_lines",
+           "process_block", "product_paths", "run_survey", "scan_inputs",
            "survey_parameters", "to_utm", "utm_epsg"]

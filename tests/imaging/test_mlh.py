@@ -24,11 +24,11 @@ from clbeam.imaging.mlh import (
     default_range_tolerance_m,
     detection_rows,
     main_lobe_u,
-    mlh_peak_rows,
     parabolic_vertex,
     pulse_range_resolution_m,
     suppress_main_lobe_highlights,
 )
+from clbeam.imaging.peaks import PingContext, peak_rows
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
 from clbeam.io.peaks import PEAK_COLUMNS
 from clbeam.model.grid import PolarGrid
@@ -177,12 +177,17 @@ def test_arcs_are_centred_on_the_heaved_source():
     opts = {"range_tolerance_m": 0.15, "max_angle_gap_deg": 45.0}
     assert [d.n_merged for d in suppress_main_lobe_highlights(peaks, cf, grid, source_yz_m=(0.0, -h), **opts)] == [2]
     assert len(suppress_main_lobe_highlights(peaks, cf, grid, **opts)) == 2
-    # the Imager's drop-in takes the source from the ping (heave is positive up)
+    # the peak rows take the source from the ping's context (heave is positive up)
     ping = SimpleNamespace(index=7, latitude_deg=34.3, longitude_deg=-119.8, heading_deg=110.0, roll_deg=0.0,
-                           heave_m=h, source_pos_m=np.zeros(3))
-    rows = mlh_peak_rows(ping, cf, None, grid, (0.0, 0.0), **opts)
+                           heave_m=h, source_pos_m=np.zeros(3), pulse=None, n_channels=64,
+                           element_pos_m=np.c_[np.zeros(64), np.linspace(-1.75, 1.75, 64), np.zeros(64)],
+                           sound_speed_m_s=1500.0)
+    context = PingContext.of_ping(ping, grid)
+    assert context.source_yz_m == (0.0, -h) and context.centre_yz_m == (0.0, 0.0)
+    rows = peak_rows(context, cf, None, grid, mlh=True, **opts)
     assert [r["n_merged"] for r in rows] == [2] and rows[0]["ship_latitude_deg"] == 34.3 and rows[0]["ping"] == 7
-    assert len(mlh_peak_rows(7, cf, None, grid, (0.0, 0.0), **opts)) == 2
+    unheaved = PingContext(index=7, centre_yz_m=(0.0, 0.0))
+    assert len(peak_rows(unheaved, cf, None, grid, mlh=True, **opts)) == 2
 
 
 # ---------------------------------------------------------------------------

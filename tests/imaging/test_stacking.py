@@ -95,7 +95,7 @@ def score(ds, imgs, k, threshold):
     hits = total = others = 0
     for ping, img in imgs:
         s = st.add(img)
-        rows = [peak_row(ping.index, WINDOW.ranges_m[ir], WINDOW.angles_deg[ia], img.source_yz_m, s.cf_smooth[ia, ir],
+        rows = [peak_row(ping.index, WINDOW.ranges_m[ir], WINDOW.angles_deg[ia], img.centre_yz_m, s.cf_smooth[ia, ir],
                          0.0, {}) for ia, ir in s.peaks]
         sc, oth = score_targets(rows, ds["truth_target_image_y"].values[ping.index],
                                 ds["truth_target_image_z"].values[ping.index], ds["target"].values, ping.index)

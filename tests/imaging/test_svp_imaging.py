@@ -13,8 +13,9 @@ from scenes import FS, bandlimited_noise, ping_dataset, profile_point_ping
 from clbeam import cli
 from clbeam.errors import OptionError, PingFileError
 from clbeam.imaging.engine import BeamformInput, get_engine
-from clbeam.imaging.imager import Imager, ImagingOptions, pick_seabed_depth_m
+from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.imaging.raytrace import travel_time_tables
+from clbeam.imaging.seabed_band import pick_seabed_depth_m
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid

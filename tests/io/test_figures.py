@@ -30,7 +30,7 @@ def test_cross_track_figure_is_written_with_its_brightest_pixel_at_the_target(tm
     # pixels finer than a range cell (0.2 m), so the peak cell is hit by some pixel
     y = np.arange(20, 35, 0.1)
     z = np.arange(65, 85, 0.1)
-    r = polar_to_raster(img.intensity, grid, img.source_yz_m, y, z)
+    r = polar_to_raster(img.intensity, grid, img.centre_yz_m, y, z)
     iz, iy = np.unravel_index(np.nanargmax(r), r.shape)
     # within half an angular cell at 80 m (0.35 m) plus half a raster pixel (0.05 m)
     tol = 0.5 * 80 * np.deg2rad(0.5) + 0.05 + 1e-9

@@ -6,7 +6,6 @@ variables (navigation, time, pulse) and from the definition of the trace,
 ``|S| / M`` of the Imager's sums on a one-angle grid.
 """
 
-import argparse
 import datetime
 
 import numpy as np
@@ -15,15 +14,14 @@ import segyio
 import xarray as xr
 from scenes import FS, PULSE, C, point_ping
 
-from clbeam.cli import commands
-from clbeam.cli.main import main
+from clbeam.cli.main import build_parser, main
 from clbeam.errors import ClbeamError, OptionError
 from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
-from clbeam.seabed.profile import TraceAxis, register_profile
+from clbeam.seabed.profile import TraceAxis
 
 TARGET_R = 75.0  # m, directly below the source (earth frame)
 AMPLITUDE = 2.5
@@ -39,16 +37,9 @@ VALID = np.ones((3, 64), dtype=bool)
 VALID[2, :16] = False  # ping 2: 16 dead channels, so M = 48 and |S| / M still equals the echo amplitude
 
 
-def quiet_common(sp):
-    sp.add_argument("-q", "--quiet", action="store_true")
-
-
 def run_profile(argv):
-    """Parse ``argv`` with a parser holding only ``profile`` and run it."""
-    p = argparse.ArgumentParser(prog="clbeam")
-    sub = p.add_subparsers()
-    register_profile(sub, quiet_common)
-    args = p.parse_args(["profile", *map(str, argv)])
+    """Parse ``clbeam profile ARGV`` with the command line's parser and run it."""
+    args = build_parser().parse_args(["profile", *map(str, argv)])
     return args.func(args)
 
 
@@ -233,17 +224,9 @@ def test_trace_axis_rounds_to_whole_microseconds_and_milliseconds_and_honours_ma
 
 
 # -- bad input ---------------------------------------------------------------------------------
-@pytest.fixture
-def cli_with_profile(monkeypatch):
-    """``clbeam.cli.main.main`` with the profile subcommand registered."""
-    regs = [r for r in commands.REGISTRARS if getattr(r, "__name__", "") != "register_profile"]
-    monkeypatch.setattr(commands, "REGISTRARS", regs + [register_profile])
-    return main
-
-
 @pytest.mark.parametrize("case", ["missing file", "not a ping file", "no such folder", "output is a folder",
                                   "negative max range", "max range before the record", "figure is the output"])
-def test_bad_input_is_one_line_and_exit_2(case, point_file, tmp_path, capsys, cli_with_profile):
+def test_bad_input_is_one_line_and_exit_2(case, point_file, tmp_path, capsys):
     bad = tmp_path / "bad.nc"
     bad.write_text("not netcdf")
     out = tmp_path / "p.sgy"
@@ -256,19 +239,19 @@ def test_bad_input_is_one_line_and_exit_2(case, point_file, tmp_path, capsys, cl
         "max range before the record": [point_file, "-o", out, "--max-range", "5"],  # record starts at 9 m
         "figure is the output": [point_file, "-o", out, "--png", out],
     }[case]
-    rc = cli_with_profile(["profile", *map(str, argv), "-q"])
+    rc = main(["profile", *map(str, argv), "-q"])
     err = capsys.readouterr().err.strip()
     assert rc == 2
     assert err.startswith("clbeam: error:") and "\n" not in err
     assert not out.exists()
 
 
-def test_missing_segyio_is_one_line_naming_the_extra(point_file, tmp_path, capsys, monkeypatch, cli_with_profile):
+def test_missing_segyio_is_one_line_naming_the_extra(point_file, tmp_path, capsys, monkeypatch):
     import sys
 
     monkeypatch.setitem(sys.modules, "segyio", None)  # import segyio now raises ImportError
     out = tmp_path / "p.sgy"
-    rc = cli_with_profile(["profile", str(point_file), "-o", str(out), "-q"])
+    rc = main(["profile", str(point_file), "-o", str(out), "-q"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "segyio" in err and "clbeam[segy]" in err and "\n" not in err
     assert not out.exists()

@@ -19,7 +19,7 @@ from clbeam.imaging.engine.common import (
 )
 
 
-def get_engine(backend: str = "opencl", *, device=None, precision: str = "float32"):
+def get_engine(backend: str = "opencl", *, device=None, precision: str | None = None):
     """Create an imaging engine.
 
     Parameters
@@ -29,15 +29,17 @@ def get_engine(backend: str = "opencl", *, device=None, precision: str = "float3
     device : str or int, optional
         OpenCL device: an index into :func:`clbeam.imaging.engine.opencl.list_devices`
         or a substring of its name (default: ``CLBEAM_DEVICE`` or the first).
-    precision : {"float32", "float64"}
-        Kernel arithmetic; float64 needs ``cl_khr_fp64`` (checked).
+    precision : {"float32", "float64"} or None
+        Arithmetic: the OpenCL kernels run float32 (default) or float64
+        (needs ``cl_khr_fp64``, checked); the reference is float64 only and
+        refuses float32, and refuses a device.
     """
     from clbeam.errors import OptionError
 
     if backend == "reference":
         from clbeam.imaging.engine.reference import ReferenceEngine
 
-        return ReferenceEngine()
+        return ReferenceEngine(precision=precision, device=device)
     if backend == "opencl":
         from clbeam.imaging.engine.opencl import OpenCLEngine
 

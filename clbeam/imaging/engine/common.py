@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -194,6 +195,18 @@ class Sums:
     m: np.ndarray | None = None
     w: np.ndarray | None = None
 
+    def rescaled(self, exponent: int) -> "Sums":
+        """These sums of data divided by ``2**exponent``, returned to the data's
+        units exactly: intensity and ``Q`` times ``4**exponent``, ``S`` times
+        ``2**exponent`` (``S`` complex128 and ``Q`` float64 from here on); CF,
+        ``M`` and ``W`` do not change."""
+        if self.intensity is not None:
+            self.intensity = rescale(self.intensity, 2 * exponent)
+        if self.s is not None:
+            self.s = self.s.astype(np.complex128) * np.ldexp(1.0, exponent)
+            self.q = np.ldexp(self.q.astype(np.float64), 2 * exponent)
+        return self
+
     def coherence_denominator(self) -> np.ndarray:
         """``W Q`` (``M Q`` unweighted): the CF denominator, float64, from the raw sums."""
         require(self.q is not None and self.m is not None, OptionError,
@@ -293,3 +306,86 @@ def carrier_phase(carrier_hz: float, sample_rate_hz: float, k: np.ndarray) -> np
     k = np.asarray(k, dtype=np.int64)
     hi, lo = np.divmod(k, 1 << 20)
     return np.mod(np.mod(w * (1 << 20), 2 * np.pi) * hi + w * lo, 2 * np.pi)
+
+
+def rescale(values: np.ndarray, exponent: int) -> np.ndarray:
+    """``values * 2**exponent`` exactly: in place in float32 when the largest
+    result stays within ``2^-60 .. 2^120`` (no overflow, and values down to
+    18 orders of magnitude below the largest stay normal), in float64
+    otherwise."""
+    if exponent == 0 or values.size == 0:
+        return values
+    if values.dtype == np.float32:
+        top = float(np.max(values))
+        if top == 0 or (np.isfinite(top) and -60 <= np.frexp(top)[1] + exponent <= 120):
+            return np.ldexp(values, np.int32(exponent), out=values)
+    return np.ldexp(values.astype(np.float64), exponent)
+
+
+def amplitude_exponent(data: np.ndarray) -> int:
+    """Power-of-two exponent ``e`` with ``max |data| / 2^e`` in [0.5, 1).
+
+    Dividing by ``2^e`` is exact, keeps float32 sums far from overflow
+    (|S|^2 of 1e30-amplitude data) and underflow (1e-30), and is undone
+    exactly afterwards; 0 for all-zero or empty data.
+    """
+    if data.size == 0:
+        return 0
+    peak = np.nanmax(np.abs(data)) if np.isfinite(data).any() else 0.0
+    if not np.isfinite(peak) or peak == 0:
+        return 0
+    return int(np.frexp(peak)[1])
+
+
+class Engine:
+    """What both backends share: checks of the call, and the amplitude
+    normalisation that keeps float32 sums of any data in range.
+
+    A backend sets :attr:`name` and :attr:`precision` and implements
+    ``_beamform(inp, grid, mode, outputs, range_window_m) -> Sums`` on data
+    whose largest magnitude lies in ``[0.5, 1)``.
+    """
+
+    name = ""
+    precision = ""
+
+    def beamform(self, inp: BeamformInput, grid: PolarGrid, *, interp: str = "linear",
+                 outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None) -> Sums:
+        """Image one ping: sums ``S, Q, M`` and from them intensity and CF.
+
+        The data are divided by a power of two (:func:`amplitude_exponent`)
+        before the sums and the results multiplied back exactly, so 1e-30 and
+        1e30 amplitudes image alike in float32.
+
+        Parameters
+        ----------
+        inp : BeamformInput
+            Analytic channels and geometry (earth frame, offsets from the grid centre).
+        grid : PolarGrid
+            Image grid.
+        interp : str
+            Interpolation mode (:data:`clbeam.imaging.engine.INTERP_MODES`).
+        outputs : iterable of str
+            Any of ``"intensity"``, ``"cf"``, ``"sums"``.
+        range_window_m : numpy.ndarray, optional
+            ``(n_angle, 2)`` range interval (m) to compute per angle; others are 0.
+
+        Returns
+        -------
+        Sums
+            The requested outputs in the units of ``inp.data``.
+        """
+        mode = interp_mode(interp)
+        check_record_length(inp, mode)
+        self._check_mode(mode)
+        outs = check_outputs(outputs)
+        exponent = amplitude_exponent(inp.data)
+        if exponent:
+            inp = dataclasses.replace(inp, data=inp.data * np.ldexp(1.0, -exponent))
+        return self._beamform(inp, grid, mode, outs, range_window_m).rescaled(exponent)
+
+    def _check_mode(self, mode: InterpMode) -> None:
+        """Raise :class:`OptionError` when this backend cannot run ``mode``."""
+
+    def _beamform(self, inp, grid, mode, outs, range_window_m) -> Sums:
+        raise NotImplementedError

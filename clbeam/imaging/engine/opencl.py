@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import os
 import threading
+from dataclasses import dataclass
 from importlib import resources
 
 import numpy as np
@@ -19,14 +20,12 @@ import numpy as np
 from clbeam.errors import DeviceError, GridError, OptionError, require
 from clbeam.imaging.engine.common import (
     BeamformInput,
+    Engine,
     InterpMode,
     Sums,
     baseband,
     carrier_phase,
     cell_windows,
-    check_outputs,
-    check_record_length,
-    interp_mode,
     range_bases,
 )
 from clbeam.model.grid import PolarGrid
@@ -113,15 +112,15 @@ def device_has_fp64(dev) -> bool:
         return False
 
 
-class OpenCLEngine:
+class OpenCLEngine(Engine):
     """Delay-and-sum on an OpenCL device (same interface as the reference).
 
     Parameters
     ----------
     device : str or int, optional
         Device index or name substring; default ``CLBEAM_DEVICE`` or the first.
-    precision : {"float32", "float64"}
-        Kernel arithmetic; float64 only on devices with ``cl_khr_fp64``.
+    precision : {"float32", "float64"} or None
+        Kernel arithmetic (default float32); float64 only on devices with ``cl_khr_fp64``.
     max_tile_cells : int, optional
         Cap on cells per launch (tiles over angle); default from device memory.
     layout : (int, int), optional
@@ -131,9 +130,10 @@ class OpenCLEngine:
 
     name = "opencl"
 
-    def __init__(self, device=None, precision: str = "float32", max_tile_cells: int | None = None,
+    def __init__(self, device=None, precision: str | None = None, max_tile_cells: int | None = None,
                  layout: tuple[int, int] | None = None):
         cl = _cl()
+        precision = precision or "float32"
         require(precision in ("float32", "float64"), OptionError,
                 f"precision '{precision}' is unknown, expected 'float32' or 'float64'")
         self.device = choose_device(device)
@@ -243,121 +243,161 @@ class OpenCLEngine:
         return rows
 
     # -- imaging ----------------------------------------------------------
-    def beamform(self, inp: BeamformInput, grid: PolarGrid, *, interp: str = "linear",
-                 outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None) -> Sums:
-        """Image one ping on the device (see :meth:`ReferenceEngine.beamform`)."""
-        mode = interp_mode(interp)
-        check_record_length(inp, mode)
+    def _check_mode(self, mode: InterpMode) -> None:
         require(mode.kernel_id >= 0, OptionError,
                 f"interpolation mode '{mode.name}' exists in the reference backend only")
-        outs = check_outputs(outputs)
-        with self._lock:
-            return self._beamform(inp, grid, mode, outs, range_window_m)
 
     def _beamform(self, inp, grid, mode, outs, range_window_m) -> Sums:
-        cl = _cl()
+        """Image one ping on the device (see :meth:`Engine.beamform`): one
+        command queue per engine, so calls from several threads take turns."""
+        require(2 * inp.n_channels * (inp.n_samples + 1) < 2**31, GridError,
+                f"{inp.n_channels} channels x {inp.n_samples} samples exceed the kernel's 32-bit indexing; "
+                "image fewer samples")
+        with self._lock:
+            launch = self._prepare(inp, grid, mode, outs, range_window_m)
+            out = _Outputs(self, grid, outs, inp.weights is not None, launch.rows)
+            for a0 in range(0, grid.shape[0], launch.rows):
+                self._run_tile(launch, out, a0)
+            self.queue.finish()
+        return out.sums()
+
+    def _prepare(self, inp, grid, mode, outs, range_window_m) -> "_Launch":
+        """Kernel, uploaded channel data and per-range tables, cell windows and tile size of one call."""
         real = self.real
-        n_a, n_r = grid.shape
-        n_chan, n_samp = inp.n_channels, inp.n_samples
-        require(2 * n_chan * (n_samp + 1) < 2**31, GridError,
-                f"{n_chan} channels x {n_samp} samples exceed the kernel's 32-bit indexing; image fewer samples")
         data = np.asarray(inp.data)
         if mode.baseband:
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
-        inter = np.empty((n_chan, n_samp, 2), dtype=real)
-        inter[..., 0] = data.real
-        inter[..., 1] = data.imag
-
+        inter = np.empty((inp.n_channels, inp.n_samples, 2), dtype=real)
+        inter[..., 0], inter[..., 1] = data.real, data.imag
         o = np.asarray(inp.element_offsets_m, dtype=np.float64)
-        chan = np.zeros((n_chan, 4), dtype=real)
-        chan[:, 0], chan[:, 1], chan[:, 2], chan[:, 3] = o[:, 1], o[:, 2], np.sum(o * o, axis=1), o[:, 0] ** 2
+        chan = np.stack([o[:, 1], o[:, 2], np.sum(o * o, axis=1), o[:, 0] ** 2], axis=1).astype(real)
         so = np.asarray(inp.source_offset_m, dtype=np.float64)
-
-        th = np.deg2rad(grid.angles_deg)
-        angle_tab = np.stack([np.sin(th), np.cos(th)], axis=1).astype(real)
         base_int, base_frac, base_phase = split_samples(range_bases(inp, grid), inp, real)
-        window = cell_windows(inp, grid, mode, range_window_m)
-
-        apodize = inp.weights is not None
-        table = inp.tables is not None
+        apodize, table = inp.weights is not None, inp.tables is not None
         if table:
             inp.check_tables(grid)
-            cell_tabs = cell_tables(inp, grid, real)
-        kernel = self._kernel(mode, outs, n_samp, n_r, apodize, table)
-        b_weights = self._upload("weights", np.asarray(inp.weights if apodize else np.ones(1), dtype=real))
-        b_data = self._upload("data", inter)
-        b_chan = self._upload("chan", chan)
-        b_range = self._upload("range", grid.ranges_m.astype(real))
-        b_bint = self._upload("base_int", base_int)
-        b_bfrac = self._upload("base_frac", base_frac)
-        b_bphase = self._upload("base_phase", base_phase)
-
+        kernel = self._kernel(mode, outs, inp.n_samples, grid.shape[1], apodize, table)
         itemsize = np.dtype(real).itemsize
         per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + (3 + apodize) * ("sums" in outs) + 5 * table)
                     + 4 * ("sums" in outs) + 4 * table)
-        wg_max = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device)
+        wg_max = kernel.get_work_group_info(_cl().kernel_work_group_info.WORK_GROUP_SIZE, self.device)
         local = max(1, min(self.local, wg_max))
         lanes = self.vec * local  # angles per tile
-        rows = max(lanes, self._tile_angles(grid, per_cell) // lanes * lanes)
-        res = Sums()
-        full = {}
+        th = np.deg2rad(grid.angles_deg)
+        args = [self._upload("data", inter), self._upload("chan", chan), np.int32(inp.n_channels),
+                self._upload("weights", np.asarray(inp.weights if apodize else np.ones(1), dtype=real))]
+        ranges = [self._upload("range", grid.ranges_m.astype(real)), self._upload("base_int", base_int),
+                  self._upload("base_frac", base_frac), self._upload("base_phase", base_phase),
+                  real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
+                  real(inp.samples_per_m), real(self._fresnel_range(o, inp.samples_per_m)),
+                  real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz)]
+        return _Launch(kernel=kernel, local=local, lanes=lanes,
+                       rows=max(lanes, self._tile_angles(grid, per_cell) // lanes * lanes),
+                       window=cell_windows(inp, grid, mode, range_window_m),
+                       angle_tab=np.stack([np.sin(th), np.cos(th)], axis=1).astype(real),
+                       cell_tabs=cell_tables(inp, grid, real) if table else None, head_args=args, range_args=ranges)
+
+    def _run_tile(self, launch: "_Launch", out: "_Outputs", a0: int) -> None:
+        """Launch the kernel on the angle rows ``a0 ..`` of one tile and read its results back."""
+        real = self.real
+        na = min(launch.rows, out.n_angles - a0)
+        na_pad = -(-na // launch.lanes) * launch.lanes
+        tab = np.zeros((2, na_pad), dtype=real)
+        tab[:, :na] = launch.angle_tab[a0:a0 + na].T
+        win = np.zeros((na_pad, 2), dtype=np.int32)
+        win[:na] = launch.window[a0:a0 + na]
+        tiles = launch_tiles(win, launch.lanes)
+        tab_bufs = [self._buffer("tab_" + k, 16) for k in TABLE_NAMES]
+        if launch.cell_tabs is not None:
+            tab_bufs = [self._upload("tab_" + k, _padded_table(launch.cell_tabs[k], a0, na, na_pad, k))
+                        for k in TABLE_NAMES]
+        out.clear(na_pad)
+        if len(tiles):
+            launch.kernel(self.queue, (len(tiles) * launch.local,), (launch.local,),
+                          *launch.head_args, self._upload("tiles", tiles),
+                          self._upload("angle_sin", tab[0]), self._upload("angle_cos", tab[1]),
+                          self._upload("win_first", np.ascontiguousarray(win[:, 0])),
+                          self._upload("win_end", np.ascontiguousarray(win[:, 1])),
+                          *launch.range_args, *out.buffer_args(), np.int32(na_pad), *tab_bufs)
+        out.read(a0, na, na_pad)
+
+
+@dataclass
+class _Launch:
+    """What every tile of one call shares: the kernel, its launch shape, the
+    per-angle tables and windows, and the leading kernel arguments."""
+
+    kernel: object
+    local: int
+    lanes: int
+    rows: int
+    window: np.ndarray
+    angle_tab: np.ndarray
+    cell_tabs: dict | None
+    head_args: list
+    range_args: list
+
+
+class _Outputs:
+    """The host arrays of one call's outputs and their device buffers (one tile of rows)."""
+
+    PLANES = {"intensity": 1, "cf": 1, "s": 2, "q": 1, "m": 1, "w": 1}
+
+    def __init__(self, engine: "OpenCLEngine", grid: PolarGrid, outs: frozenset, apodize: bool, rows: int):
+        self.engine, real = engine, engine.real
+        self.n_angles, self.n_ranges = n_a, n_r = grid.shape
+        self.full = {}
         if "intensity" in outs:
-            full["intensity"] = res.intensity = np.empty((n_a, n_r), dtype=real)
+            self.full["intensity"] = np.empty((n_a, n_r), dtype=real)
         if "cf" in outs:
-            full["cf"] = res.cf = np.empty((n_a, n_r), dtype=real)
+            self.full["cf"] = np.empty((n_a, n_r), dtype=real)
         if "sums" in outs:
-            full["s"] = np.empty((2, n_a, n_r), dtype=real)
-            full["q"] = res.q = np.empty((n_a, n_r), dtype=real)
-            full["m"] = res.m = np.empty((n_a, n_r), dtype=np.int32)
+            self.full.update(s=np.empty((2, n_a, n_r), dtype=real), q=np.empty((n_a, n_r), dtype=real),
+                             m=np.empty((n_a, n_r), dtype=np.int32))
             if apodize:
-                full["w"] = res.w = np.empty((n_a, n_r), dtype=real)
-        planes = {"intensity": 1, "cf": 1, "s": 2, "q": 1, "m": 1, "w": 1}
-        bufs = {name: self._buffer("out_" + name, planes[name] * rows * n_r * (4 if name == "m" else itemsize)
-                                   if name in full else 16) for name in planes}
-        for a0 in range(0, n_a, rows):
-            na = min(rows, n_a - a0)
-            na_pad = -(-na // lanes) * lanes
-            tab = np.zeros((4, na_pad), dtype=real)
-            tab[0, :na], tab[1, :na] = angle_tab[a0:a0 + na, 0], angle_tab[a0:a0 + na, 1]
-            win = np.zeros((na_pad, 2), dtype=np.int32)
-            win[:na] = window[a0:a0 + na]
-            tiles = launch_tiles(win, lanes)
-            tab_bufs = [self._buffer("tab_" + k, 16) for k in TABLE_NAMES]
-            if table:
-                tab_bufs = []
-                for k in TABLE_NAMES:
-                    a = cell_tabs[k]
-                    t = np.zeros((n_r, na_pad), dtype=a.dtype)
-                    t[:, :na] = a[a0:a0 + na].T
-                    if k == "int":
-                        t[:, na:] = UNREACHABLE_TAP
-                    tab_bufs.append(self._upload("tab_" + k, t))
-            for name, arr in full.items():
-                cl.enqueue_fill_buffer(self.queue, bufs[name], np.zeros(1, dtype=arr.dtype), 0,
-                                       planes[name] * na_pad * n_r * arr.itemsize)
-            if len(tiles):
-                kernel(self.queue, (len(tiles) * local,), (local,),
-                       b_data, b_chan, np.int32(n_chan), b_weights, self._upload("tiles", tiles),
-                       self._upload("angle_sin", tab[0]), self._upload("angle_cos", tab[1]),
-                       self._upload("win_first", np.ascontiguousarray(win[:, 0])),
-                       self._upload("win_end", np.ascontiguousarray(win[:, 1])),
-                       b_range, b_bint, b_bfrac, b_bphase,
-                       real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
-                       real(inp.samples_per_m), real(self._fresnel_range(o, inp.samples_per_m)),
-                       real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz),
-                       bufs["intensity"], bufs["cf"], bufs["s"], bufs["q"], bufs["m"], bufs["w"], np.int32(na_pad),
-                       *tab_bufs)
-            for name, arr in full.items():
-                if name == "s":
-                    host = np.empty((2, na_pad, n_r), dtype=real)
-                    cl.enqueue_copy(self.queue, host, bufs[name], is_blocking=True)
-                    arr[:, a0:a0 + na] = host[:, :na]
-                else:
-                    cl.enqueue_copy(self.queue, arr[a0:a0 + na], bufs[name], is_blocking=True)
-        self.queue.finish()
-        if "sums" in outs:
-            res.s = full["s"][0] + 1j * full["s"][1]
+                self.full["w"] = np.empty((n_a, n_r), dtype=real)
+        self.bufs = {name: engine._buffer("out_" + name, planes * rows * n_r * (4 if name == "m" else real().itemsize)
+                                          if name in self.full else 16) for name, planes in self.PLANES.items()}
+
+    def buffer_args(self) -> list:
+        """The output buffers in the kernel's argument order."""
+        return [self.bufs[name] for name in self.PLANES]
+
+    def clear(self, na_pad: int) -> None:
+        """Zero the outputs of a tile of ``na_pad`` angle rows (cells the kernel skips stay 0)."""
+        cl = _cl()
+        for name, arr in self.full.items():
+            cl.enqueue_fill_buffer(self.engine.queue, self.bufs[name], np.zeros(1, dtype=arr.dtype), 0,
+                                   self.PLANES[name] * na_pad * self.n_ranges * arr.itemsize)
+
+    def read(self, a0: int, na: int, na_pad: int) -> None:
+        """Copy a tile's results into rows ``a0 .. a0 + na`` of the host arrays."""
+        cl, queue = _cl(), self.engine.queue
+        for name, arr in self.full.items():
+            if name == "s":
+                host = np.empty((2, na_pad, self.n_ranges), dtype=arr.dtype)
+                cl.enqueue_copy(queue, host, self.bufs[name], is_blocking=True)
+                arr[:, a0:a0 + na] = host[:, :na]
+            else:
+                cl.enqueue_copy(queue, arr[a0:a0 + na], self.bufs[name], is_blocking=True)
+
+    def sums(self) -> Sums:
+        """The results as :class:`Sums`."""
+        f = self.full
+        res = Sums(intensity=f.get("intensity"), cf=f.get("cf"), q=f.get("q"), m=f.get("m"), w=f.get("w"))
+        if "s" in f:
+            res.s = f["s"][0] + 1j * f["s"][1]
         return res
+
+
+def _padded_table(a: np.ndarray, a0: int, na: int, na_pad: int, name: str) -> np.ndarray:
+    """Rows ``a0 .. a0 + na`` of a per-cell table, transposed to ``(n_range, na_pad)``; padding
+    angles get a tap no ray reaches."""
+    t = np.zeros((a.shape[1], na_pad), dtype=a.dtype)
+    t[:, :na] = a[a0:a0 + na].T
+    if name == "int":
+        t[:, na:] = UNREACHABLE_TAP
+    return t
 
 
 #: names of the per-cell travel-time tables, in the kernel's argument order

@@ -10,16 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from clbeam.errors import OptionError, require
 from clbeam.imaging.engine.common import (
     EXACT_HALF_WIDTH,
     BeamformInput,
+    Engine,
     InterpMode,
     Sums,
     baseband,
     carrier_phase,
-    check_outputs,
-    check_record_length,
-    interp_mode,
     user_windows,
 )
 from clbeam.model.grid import PolarGrid
@@ -83,92 +82,118 @@ def interpolate(channel: np.ndarray, pos: np.ndarray, mode: InterpMode) -> np.nd
     return val
 
 
-class ReferenceEngine:
-    """float64 NumPy delay-and-sum (same interface as the OpenCL engine)."""
+class ReferenceEngine(Engine):
+    """float64 NumPy delay-and-sum (same interface as the OpenCL engine).
+
+    Parameters
+    ----------
+    precision : {"float64"} or None
+        Only float64 (the reference's arithmetic); ``None`` means float64.
+    device : None
+        The reference runs on the CPU; a device is refused.
+    """
 
     name = "reference"
     precision = "float64"
 
-    def beamform(self, inp: BeamformInput, grid: PolarGrid, *, interp: str = "linear",
-                 outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None) -> Sums:
-        """Image one ping: sums ``S, Q, M`` and from them intensity and CF.
+    def __init__(self, precision: str | None = None, device=None):
+        require(precision in (None, "float64"), OptionError,
+                f"the reference backend computes in float64 only, got precision '{precision}'")
+        require(device is None, OptionError,
+                f"the reference backend runs on the CPU; device {device!r} applies to the OpenCL backend only")
 
-        Parameters
-        ----------
-        inp : BeamformInput
-            Analytic channels and geometry (earth frame, offsets from the grid centre).
-        grid : PolarGrid
-            Image grid.
-        interp : str
-            Interpolation mode (:data:`clbeam.imaging.engine.INTERP_MODES`).
-        outputs : iterable of str
-            Any of ``"intensity"``, ``"cf"``, ``"sums"``.
-        range_window_m : numpy.ndarray, optional
-            ``(n_angle, 2)`` range interval (m) to compute per angle; others are 0.
-        """
-        mode = interp_mode(interp)
-        check_record_length(inp, mode)
-        outs = check_outputs(outputs)
+    def _beamform(self, inp: BeamformInput, grid: PolarGrid, mode: InterpMode, outs: frozenset,
+                  range_window_m: np.ndarray | None) -> Sums:
+        """The sums over channels, cell block by cell block (see :meth:`Engine.beamform`)."""
         data = np.asarray(inp.data, dtype=np.complex128)
         if mode.baseband:
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
-        n_a, n_r = grid.shape
-        th = np.deg2rad(grid.angles_deg)
-        cell_y = (grid.ranges_m[None, :] * np.sin(th)[:, None]).ravel()
-        cell_z = (grid.ranges_m[None, :] * np.cos(th)[:, None]).ravel()
-        computed = np.ones(n_a * n_r, dtype=bool)
-        if range_window_m is not None:
-            # the caller's window only: cells outside the record fall out by themselves
-            win = user_windows(grid, range_window_m)
-            j = np.arange(n_r)[None, :]
-            computed = ((j >= win[:, :1]) & (j < win[:, 1:])).ravel()
-        s = np.zeros(n_a * n_r, dtype=np.complex128)
-        q = np.zeros(n_a * n_r)
-        m = np.zeros(n_a * n_r, dtype=np.int32)
-        wsum = np.zeros(n_a * n_r)
+        n_cells = grid.n_cells
+        computed = _computed(grid, range_window_m)
+        acc = {"s": np.zeros(n_cells, dtype=np.complex128), "q": np.zeros(n_cells), "m": np.zeros(n_cells, dtype=np.int32),
+               "w": np.zeros(n_cells)}
         weights = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
-        so = np.asarray(inp.source_offset_m, dtype=np.float64)
-        fs, c = inp.sample_rate_hz, inp.sound_speed_m_s
+        paths = _CellPaths(inp, grid)
+        for b0 in range(0, n_cells, BLOCK_CELLS):
+            sl = slice(b0, min(b0 + BLOCK_CELLS, n_cells))
+            for n, pos in enumerate(paths.sample_positions(sl)):
+                v = interpolate(data[n], pos, mode)
+                if mode.baseband:
+                    v = v * _carrier(inp, pos)
+                ok = np.isfinite(v) & computed[sl]
+                v = np.where(ok, v, 0)
+                acc["s"][sl] += weights[n] * v
+                acc["q"][sl] += weights[n] * np.abs(v) ** 2
+                acc["m"][sl] += ok
+                acc["w"][sl] += weights[n] * ok
+        return _results(acc, outs, grid.shape, inp.weights is not None)
+
+
+def _computed(grid: PolarGrid, range_window_m) -> np.ndarray:
+    """Cells to compute: the caller's window only (cells outside the record fall out by themselves)."""
+    n_a, n_r = grid.shape
+    if range_window_m is None:
+        return np.ones(n_a * n_r, dtype=bool)
+    win = user_windows(grid, range_window_m)
+    j = np.arange(n_r)[None, :]
+    return ((j >= win[:, :1]) & (j < win[:, 1:])).ravel()
+
+
+class _CellPaths:
+    """Fractional sample positions of every channel's echo from a block of cells."""
+
+    def __init__(self, inp: BeamformInput, grid: PolarGrid):
+        self.inp = inp
+        th = np.deg2rad(grid.angles_deg)
+        self.cell_y = (grid.ranges_m[None, :] * np.sin(th)[:, None]).ravel()
+        self.cell_z = (grid.ranges_m[None, :] * np.cos(th)[:, None]).ravel()
+        self.c = inp.sound_speed_m_s
         if inp.tables is not None:
             inp.check_tables(grid)
             tab = inp.tables
             # two-way time from the centre, and each point's ray direction and wavefront radius
-            t_centre = 2.0 * tab.time_s.ravel()
-            ray_y, ray_z = tab.launch_sin.ravel(), tab.launch_cos.ravel()
-            rho = tab.wavefront_radius_m.ravel()
-            c = tab.centre_speed_m_s
-        w = 2 * np.pi * inp.centre_frequency_hz / fs
-        for b0 in range(0, n_a * n_r, BLOCK_CELLS):
-            sl = slice(b0, min(b0 + BLOCK_CELLS, n_a * n_r))
-            if inp.tables is None:  # straight rays: the path length from each point to the cell
-                y, z = cell_y[sl], cell_z[sl]
-                t_base = 0.0
-            else:  # rays from the centre; a point's path differs by |rho u - o| - rho
-                y, z = rho[sl] * ray_y[sl], rho[sl] * ray_z[sl]
-                t_base = t_centre[sl] - 2 * rho[sl] / c
-            d_src = np.sqrt(so[0] ** 2 + (y - so[1]) ** 2 + (z - so[2]) ** 2)
-            for n, o in enumerate(inp.element_offsets_m):
-                d_rx = np.sqrt(o[0] ** 2 + (y - o[1]) ** 2 + (z - o[2]) ** 2)
-                pos = (t_base + (d_src + d_rx) / c - inp.t0_s) * fs
-                v = interpolate(data[n], pos, mode)
-                if mode.baseband:
-                    k = np.floor(pos)
-                    v = v * np.exp(1j * (carrier_phase(inp.centre_frequency_hz, fs, np.where(np.isfinite(k), k, 0)) + w * (pos - k)))
-                ok = np.isfinite(v) & computed[sl]
-                s[sl] += weights[n] * np.where(ok, v, 0)
-                q[sl] += weights[n] * np.where(ok, np.abs(np.where(ok, v, 0)) ** 2, 0)
-                m[sl] += ok
-                wsum[sl] += weights[n] * ok
-        inten = np.abs(s) ** 2
-        result = Sums()
-        if "intensity" in outs:
-            result.intensity = inten.reshape(n_a, n_r)
-        if "cf" in outs:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                cf = np.where((wsum > 0) & (q > 0), inten / (wsum * q), 0.0)
-            result.cf = cf.reshape(n_a, n_r)
-        if "sums" in outs:
-            result.s, result.q, result.m = s.reshape(n_a, n_r), q.reshape(n_a, n_r), m.reshape(n_a, n_r)
-            if inp.weights is not None:
-                result.w = wsum.reshape(n_a, n_r)
-        return result
+            self.t_centre = 2.0 * tab.time_s.ravel()
+            self.ray_y, self.ray_z = tab.launch_sin.ravel(), tab.launch_cos.ravel()
+            self.rho = tab.wavefront_radius_m.ravel()
+            self.c = tab.centre_speed_m_s
+
+    def sample_positions(self, sl: slice):
+        """Yield, channel by channel, the sample positions ``(t - t0) fs`` for the cells ``sl``."""
+        inp, c = self.inp, self.c
+        if inp.tables is None:  # straight rays: the path length from each point to the cell
+            y, z = self.cell_y[sl], self.cell_z[sl]
+            t_base = 0.0
+        else:  # rays from the centre; a point's path differs by |rho u - o| - rho
+            y, z = self.rho[sl] * self.ray_y[sl], self.rho[sl] * self.ray_z[sl]
+            t_base = self.t_centre[sl] - 2 * self.rho[sl] / c
+        so = np.asarray(inp.source_offset_m, dtype=np.float64)
+        d_src = np.sqrt(so[0] ** 2 + (y - so[1]) ** 2 + (z - so[2]) ** 2)
+        for o in inp.element_offsets_m:
+            d_rx = np.sqrt(o[0] ** 2 + (y - o[1]) ** 2 + (z - o[2]) ** 2)
+            yield (t_base + (d_src + d_rx) / c - inp.t0_s) * inp.sample_rate_hz
+
+
+def _carrier(inp: BeamformInput, pos: np.ndarray) -> np.ndarray:
+    """The carrier phase factor a basebanded value gets back at sample position ``pos``."""
+    fs = inp.sample_rate_hz
+    k = np.floor(pos)
+    w = 2 * np.pi * inp.centre_frequency_hz / fs
+    return np.exp(1j * (carrier_phase(inp.centre_frequency_hz, fs, np.where(np.isfinite(k), k, 0)) + w * (pos - k)))
+
+
+def _results(acc: dict, outs: frozenset, shape: tuple, weighted: bool) -> Sums:
+    """Intensity ``|S|^2``, CF ``|S|^2 / (W Q)`` (0 where ``W Q = 0``) and the raw sums, as requested."""
+    s, q, wsum = acc["s"], acc["q"], acc["w"]
+    inten = np.abs(s) ** 2
+    result = Sums()
+    if "intensity" in outs:
+        result.intensity = inten.reshape(shape)
+    if "cf" in outs:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cf = np.where((wsum > 0) & (q > 0), inten / (wsum * q), 0.0)
+        result.cf = cf.reshape(shape)
+    if "sums" in outs:
+        result.s, result.q, result.m = s.reshape(shape), q.reshape(shape), acc["m"].reshape(shape)
+        if weighted:
+            result.w = wsum.reshape(shape)
+    return result

@@ -7,21 +7,20 @@ the path.  Nothing here computes an attribute: callers pass what
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from clbeam.seabed.avo.attributes import (  # noqa: E402
+from clbeam.io.figures import pyplot
+from clbeam.seabed.avo.attributes import (
     FAR_INTERCEPT_DEG,
     FAR_RANGE_DEG,
     NEAR_INTERCEPT_DEG,
     NEAR_RANGE_DEG,
     OUTER_RANGE_DEG,
     AngularAttributes,
+    angular_attributes,
 )
 
 #: Colour of the background trend line (figure 2).
@@ -32,7 +31,7 @@ _RANGE_COLORS = {"near": "#1f77b4", "far": "#2ca02c", "outer": "#9467bd"}
 def _save(fig, path) -> Path:
     path = Path(path)
     fig.savefig(path, dpi=100)
-    plt.close(fig)
+    pyplot().close(fig)
     return path
 
 
@@ -58,7 +57,7 @@ def plot_angular_response(path, incidence_deg, strength_db, attributes: AngularA
         Figure title.
     """
     inc = np.abs(np.asarray(incidence_deg, dtype=float))
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig, ax = pyplot().subplots(figsize=(8, 5))
     for name, (lo, hi) in (("near", NEAR_RANGE_DEG), ("far", FAR_RANGE_DEG), ("outer", OUTER_RANGE_DEG)):
         ax.axvspan(90 - hi, 90 - lo, color=_RANGE_COLORS[name], alpha=0.08)
         mean = getattr(attributes, f"{name}_mean_db")
@@ -103,7 +102,7 @@ def plot_gradient_intercept(path, intercept_a_db, gradient_b_db, g: float, d: fl
     """
     a = np.asarray(intercept_a_db, dtype=float)
     b = np.asarray(gradient_b_db, dtype=float)
-    fig, ax = plt.subplots(figsize=(6, 5))
+    fig, ax = pyplot().subplots(figsize=(6, 5))
     if fluid_factor_db is None:
         ax.plot(a, b, "o", color="k", ms=4)
     else:
@@ -141,7 +140,7 @@ def plot_along_track(path, position, series: dict, *, sides=None, xlabel: str = 
     """
     x = np.asarray(position, dtype=float)
     n = max(len(series), 1)
-    fig, axes = plt.subplots(n, 1, figsize=(8, 1.8 * n + 1), sharex=True, squeeze=False)
+    fig, axes = pyplot().subplots(n, 1, figsize=(8, 1.8 * n + 1), sharex=True, squeeze=False)
     groups = {"all": np.ones(x.size, bool)} if sides is None else {
         s: np.asarray(sides) == s for s in ("port", "starboard")}
     for ax, (label, values) in zip(axes[:, 0], series.items()):
@@ -155,3 +154,54 @@ def plot_along_track(path, position, series: dict, *, sides=None, xlabel: str = 
         axes[0, 0].legend(fontsize=7)
     axes[-1, 0].set_xlabel(xlabel)
     return _save(fig, path)
+
+
+def write_figures(folder, patches, rows, *, frequency_hz=None, sound_speed_m_s: float = 1500.0) -> list[Path]:
+    """The AVO figures of a survey into ``folder`` (PNG); returns their paths.
+
+    ``avo_response_first.png`` / ``avo_response_last.png``: the first and the
+    last patch's stacked response with its attributes (and the fitted model
+    when the inversion ran); ``avo_gradient_intercept.png``;
+    ``avo_track.png``: A, B, fluid factor and Mz along the track.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        Output folder (created).
+    patches : list of Patch
+        Stacked responses, in the order of ``rows``.
+    rows : list of PatchRecord
+        Their records (:func:`clbeam.seabed.avo.table.survey_records`).
+    frequency_hz : float, optional
+        Band centre (Hz) of the fitted-model curve; no curve without it.
+    sound_speed_m_s : float
+        Water sound speed of the model (m/s).
+    """
+    from clbeam.seabed.avo.model import backscatter_strength_db
+    from clbeam.seabed.avo.sediment import sediment_from_grain_size
+
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for tag, k in (("first", 0), ("last", len(patches) - 1)):
+        p, r = patches[k], rows[k]
+        model = None
+        if frequency_hz is not None and np.isfinite(r.mz_phi):
+            sed = dataclasses.replace(sediment_from_grain_size(r.mz_phi), w2_cm4=r.roughness_w2_cm4,
+                                      sigma2=r.volume_sigma2)
+            model = backscatter_strength_db(np.clip(90.0 - p.incidence_deg, 1e-3, 90.0), frequency_hz,
+                                            sediment=sed, sound_speed_water_m_s=sound_speed_m_s)
+        paths.append(plot_angular_response(
+            out / f"avo_response_{tag}.png", p.incidence_deg, p.strength_db,
+            angular_attributes(p.incidence_deg, p.strength_db), model_db=model,
+            title=f"{p.side}, pings {p.ping_start}-{p.ping_stop - 1}, along-track {p.along_track_m:.0f} m"))
+    a = [r.intercept_a_db for r in rows]
+    b = [r.gradient_b_db for r in rows]
+    paths.append(plot_gradient_intercept(out / "avo_gradient_intercept.png", a, b, rows[0].trend_g,
+                                         rows[0].trend_d_db, fluid_factor_db=[r.fluid_factor_db for r in rows]))
+    series = {"A (dB)": a, "B (dB)": b, "fluid factor (dB)": [r.fluid_factor_db for r in rows]}
+    if any(np.isfinite(r.mz_phi) for r in rows):
+        series["Mz (phi)"] = [r.mz_phi for r in rows]
+    paths.append(plot_along_track(out / "avo_track.png", [r.along_track_m for r in rows], series,
+                                  sides=[r.side for r in rows]))
+    return paths

@@ -29,14 +29,10 @@ def _model_a(mz):
 
 
 def avo(argv):
-    """``clbeam avo ARGV`` through the subcommand's own parser."""
-    import argparse
+    """``clbeam avo ARGV`` through the command line's parser."""
+    from clbeam.cli.main import build_parser
 
-    from clbeam.seabed.avo.cli import register_avo
-
-    p = argparse.ArgumentParser(prog="clbeam")
-    register_avo(p.add_subparsers(dest="command"), lambda sp: sp.add_argument("-q", "--quiet", action="store_true"))
-    args = p.parse_args(["avo", *argv])
+    args = build_parser().parse_args(["avo", *argv])
     return args.func(args)
 
 

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-import argparse
 import csv
 
 import numpy as np
 import pytest
 from test_avo_response import northward_track, seabed_ping, write_image_file
 
+from clbeam.cli.main import build_parser
 from clbeam.errors import ClbeamError
-from clbeam.seabed.avo.cli import register_avo
 from clbeam.seabed.avo.model import backscatter_strength_db
 from clbeam.seabed.avo.table import COLUMNS
 
@@ -20,11 +19,8 @@ SPACING_M = 2.0
 
 
 def run(argv):
-    """Parse ``argv`` with the avo subcommand alone and run it."""
-    p = argparse.ArgumentParser(prog="clbeam")
-    sub = p.add_subparsers(dest="command", required=True)
-    register_avo(sub, lambda sp: sp.add_argument("-q", "--quiet", action="store_true"))
-    args = p.parse_args(["avo", *argv])
+    """Parse ``clbeam avo ARGV`` with the command line's parser and run it."""
+    args = build_parser().parse_args(["avo", *argv])
     return args.func(args)
 
 

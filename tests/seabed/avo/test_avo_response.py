@@ -20,6 +20,7 @@ import pytest
 
 from clbeam.constants import WGS84_A_M, WGS84_F
 from clbeam.errors import ClbeamError, OptionError
+from clbeam.imaging.peaks import PingContext
 from clbeam.seabed.avo.model import backscatter_strength_db, lambert_strength_db
 from clbeam.seabed.avo.response import (
     ResponseOptions,
@@ -72,10 +73,11 @@ def write_image_file(path, intensity, angles_deg, ranges_m, *, latitude=None, lo
     variables = ["intensity", "cf"] if cf else ["cf"]
     with ImageWriter(path, grid, intensity.shape[0], variables, {"source_file": "synthetic"}) as w:
         for p in range(intensity.shape[0]):
+            ctx = PingContext(index=p, centre_yz_m=(0.0, 0.0), latitude_deg=None if latitude is None else latitude[p],
+                              longitude_deg=None if longitude is None else longitude[p], heading_deg=0.0)
             img = types.SimpleNamespace(intensity=intensity[p], cf=np.zeros_like(intensity[p]),
-                                        cf_smooth=np.zeros_like(intensity[p]), sums=None, source_yz_m=(0.0, 0.0))
-            w.write(p, img, latitude=None if latitude is None else latitude[p],
-                    longitude=None if longitude is None else longitude[p], heading=0.0)
+                                        cf_smooth=np.zeros_like(intensity[p]), sums=None, context=ctx)
+            w.write(p, img)
     return path
 
 

@@ -1,6 +1,5 @@
 """The ``forward`` subcommand and the Figs. 8–9 reproductions."""
 
-import argparse
 import csv
 
 import numpy as np
@@ -8,16 +7,15 @@ import pytest
 import xarray as xr
 from matplotlib.image import imread
 
+from clbeam.cli.forward import run
+from clbeam.cli.main import build_parser
 from clbeam.errors import ClbeamError, OptionError
 from clbeam.seabed.forward import LayoutFileError, echo_times, table2_layout
-from clbeam.seabed.forward.cli import add_parser, register, run
 from clbeam.seabed.forward.figures import echo_spectra_db, table2_figures, table2_traces
 
 
 def parse(argv):
-    parser = argparse.ArgumentParser(prog="clbeam")
-    add_parser(parser.add_subparsers(dest="command"))
-    return parser.parse_args(argv)
+    return build_parser().parse_args(argv)
 
 
 def test_forward_writes_the_trace_figures_and_a_one_line_summary(tmp_path, capsys):
@@ -72,11 +70,8 @@ def test_forward_missing_layout_file_is_a_clbeam_error(tmp_path):
     assert issubclass(LayoutFileError, ClbeamError)
 
 
-def test_registrar_form_accepts_the_shared_option_hook():
-    parser = argparse.ArgumentParser(prog="clbeam")
-    sub = parser.add_subparsers(dest="command")
-    register(sub, lambda p: p.add_argument("-q", "--quiet", action="store_true"))
-    args = parser.parse_args(["forward", "--layers", "x.toml", "-q"])
+def test_forward_is_registered_with_the_shared_quiet_option():
+    args = build_parser().parse_args(["forward", "--layers", "x.toml", "-q"])
     assert args.quiet and args.chirp == "low" and args.func is run
 
 

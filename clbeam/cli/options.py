@@ -1,0 +1,144 @@
+"""Option groups and helpers shared by the ``clbeam`` subcommands.
+
+Every subcommand that images pings takes its grid, mode and engine options
+from here, so ``--interp``, ``--backend``, ``--device`` and the rest are
+defined once and mean the same thing everywhere.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+from clbeam.constants import PEAK_THRESHOLD
+from clbeam.errors import ClbeamError, OptionError, require
+
+
+def progress(iterable, *, total=None, desc="", quiet=False, unit="ping"):
+    """A tqdm progress bar on a terminal, nothing otherwise or with ``quiet``."""
+    from tqdm import tqdm
+
+    return tqdm(iterable, total=total, desc=desc, unit=unit, disable=quiet or not sys.stderr.isatty(),
+                dynamic_ncols=True, leave=False)
+
+
+def stage_printer(args):
+    """A function printing ``"  <stage> …"`` on stderr, silent with ``--quiet``."""
+    if args.quiet:
+        return lambda msg: None
+    return lambda msg: print(f"  {msg} …", file=sys.stderr, flush=True)
+
+
+def require_extra(module: str, extra: str, command: str) -> None:
+    """Raise a one-line :class:`ClbeamError` when ``module`` (of the optional
+    dependency group ``extra``) is not installed."""
+    try:
+        importlib.import_module(module)
+    except ImportError:
+        raise ClbeamError(f"clbeam {command} needs {module}, which is not installed: "
+                          f"pip install 'clbeam[{extra}]'") from None
+
+
+def add_quiet(p: argparse.ArgumentParser) -> None:
+    """``-q/--quiet``: no progress bar or summary (every subcommand has it)."""
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+
+
+def add_engine_choice(p, *, group=None) -> None:
+    """``--interp``, ``--backend`` and ``--device``: which engine and mode image the pings."""
+    from clbeam.imaging.engine import INTERP_MODES
+
+    g = group or p.add_argument_group("engine")
+    g.add_argument("--interp", default="cubic", choices=list(INTERP_MODES),
+                   help="interpolation mode (default cubic: see the README's run-time/error table); "
+                        "'exact' runs on the reference backend only")
+    g.add_argument("--backend", default="opencl", choices=["opencl", "reference"], help="imaging engine (default opencl)")
+    g.add_argument("--device", default=None, help="OpenCL device: index or name substring (default: CLBEAM_DEVICE or the first)")
+
+
+def add_grid_options(p: argparse.ArgumentParser) -> None:
+    """Grid options of SPEC §8."""
+    g = p.add_argument_group("grid")
+    g.add_argument("--range-res", type=float, default=0.2, metavar="M", help="range step (m, default 0.2)")
+    g.add_argument("--angle-res", type=float, default=0.1, metavar="DEG", help="angle step (degree, default 0.1)")
+    g.add_argument("--max-range", type=float, default=None, metavar="M",
+                   help="largest range (m, default: the end of the record)")
+    g.add_argument("--min-range", type=float, default=0.0, metavar="M", help="smallest range (m, default 0)")
+    g.add_argument("--angles", type=float, nargs=2, default=(-80.0, 80.0), metavar=("MIN", "MAX"),
+                   help="angle window from nadir (degree, starboard positive, default -80 80)")
+
+
+def add_imaging_options(p: argparse.ArgumentParser) -> None:
+    """Engine choice, mode, outputs and the processing options of :class:`~clbeam.imaging.ImagingOptions`."""
+    g = p.add_argument_group("imaging")
+    add_engine_choice(p, group=g)
+    g.add_argument("--upsample", type=int, default=1, metavar="N", help="FFT upsampling of the analytic signal (default 1)")
+    g.add_argument("--outputs", default="intensity,cf", metavar="LIST",
+                   help="comma-separated outputs: intensity, cf, sums (default intensity,cf)")
+    g.add_argument("--precision", default=None, choices=["float32", "float64"],
+                   help="kernel arithmetic (default: float32 on OpenCL, float64 on the reference backend)")
+    g.add_argument("--sound-speed", type=float, default=None, metavar="M/S", help="override the file's sound speed (m/s)")
+    g.add_argument("--threshold", type=float, default=PEAK_THRESHOLD,
+                   help=f"coherence-peak threshold on smoothed CF (default {PEAK_THRESHOLD:g})")
+    g.add_argument("--seabed-band", type=float, nargs=2, default=None, metavar=("ABOVE", "BELOW"),
+                   help="compute only cells from ABOVE m above to BELOW m below the seabed (e.g. 5 40)")
+    g.add_argument("--seabed-depth", type=float, default=None, metavar="M",
+                   help="seabed depth below the transducers for --seabed-band (default: picked per ping)")
+    g.add_argument("--apodization", default="rect", metavar="WINDOW",
+                   help="receive window across the array: rect, hann, tukey[:alpha], chebyshev[:dB] "
+                        "(default rect; CF becomes the weighted CF)")
+    g.add_argument("--isospeed", action="store_true",
+                   help="straight rays at the file's sound speed even when it has a sound-speed profile (svp_*)")
+    g.add_argument("--sediment-speed", type=float, default=None, metavar="M/S",
+                   help="sediment interval velocity below the seabed (m/s): rays refract at the seabed "
+                        "(--seabed-depth, else picked per ping)")
+    g.add_argument("--mlh", action="store_true",
+                   help="merge the coherence peaks on one main-lobe arc into one detection (lobe-fitted position)")
+    g.add_argument("--no-calibration", action="store_true",
+                   help="ignore the file's element_gain_db / element_phase_deg (default: remove them)")
+
+
+def options_from_args(args):
+    """:class:`~clbeam.imaging.ImagingOptions` from arguments of :func:`add_imaging_options`."""
+    from clbeam.imaging.imager import ImagingOptions
+
+    outputs = tuple(s.strip() for s in args.outputs.split(",") if s.strip())
+    return ImagingOptions(interp=args.interp, upsample=args.upsample, outputs=outputs, threshold=args.threshold,
+                          sound_speed_m_s=args.sound_speed, precision=args.precision,
+                          seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
+                          seabed_depth_m=args.seabed_depth, apodization=args.apodization,
+                          calibrate=not args.no_calibration, mlh=args.mlh, use_svp=not args.isospeed,
+                          sediment_speed_m_s=args.sediment_speed)
+
+
+def grid_from_args(args, max_range_default: float):
+    """:class:`~clbeam.model.grid.PolarGrid` from arguments of :func:`add_grid_options`."""
+    from clbeam.model.grid import PolarGrid
+
+    return PolarGrid.regular(range_res_m=args.range_res, angle_res_deg=args.angle_res,
+                             max_range_m=args.max_range if args.max_range is not None else max_range_default,
+                             min_range_m=args.min_range, angles_deg=tuple(args.angles))
+
+
+def check_output_path(output, *inputs) -> None:
+    """Refuse an output that is one of the inputs or an existing folder
+    (other than a Zarr store), before anything is written or removed."""
+    out = Path(output)
+    for inp in inputs:
+        require(not (out.exists() and Path(inp).exists() and out.resolve() == Path(inp).resolve()), OptionError,
+                f"output {out} is the input file; choose another name")
+    require(not (out.is_dir() and out.suffix != ".zarr"), OptionError,
+            f"output {out} is an existing folder; give a file name")
+    require(out.parent.exists() or str(out.parent) == "", OptionError, f"output folder {out.parent} does not exist")
+
+
+def remove_partial(path: Path) -> None:
+    """Delete an output file or Zarr folder left incomplete by an error."""
+    import shutil
+
+    if path.is_dir():
+        shutil.rmtree(path, ignore_errors=True)
+    elif path.exists():
+        path.unlink()

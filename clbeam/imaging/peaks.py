@@ -1,0 +1,178 @@
+"""Peak-table rows of one ping: the one builder for images in memory and in files.
+
+:func:`peak_rows` turns a smoothed CF image into the rows of the peaks table
+(SPEC §3 step 7): every coherence peak, or with ``mlh=True`` one detection
+per main-lobe arc (:mod:`clbeam.imaging.mlh`).  What it needs of the ping
+besides the image is a :class:`PingContext`, which the
+:class:`~clbeam.imaging.imager.Imager` builds from a
+:class:`~clbeam.model.ping.Ping` and :func:`peaks_from_images` reads back
+from an image file, so ``clbeam image --peaks`` and ``clbeam peaks`` give the
+same rows.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from clbeam.constants import (
+    PEAK_THRESHOLD,
+    SBP29_ARRAY_WIDTH_M,
+    SBP29_BAND_HZ,
+    SOUND_SPEED_M_S,
+)
+from clbeam.imaging.geometry import to_earth_frame
+from clbeam.imaging.mlh import (
+    arc_tolerances,
+    detection_rows,
+    suppress_main_lobe_highlights,
+)
+from clbeam.imaging.postprocess import coherence_peaks, hann_smooth, peak_row
+from clbeam.model.grid import PolarGrid
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PingContext:
+    """What the peak rows of a ping need besides its image.
+
+    Attributes
+    ----------
+    index : int
+        Ping index.
+    centre_yz_m : (float, float)
+        Earth-frame grid centre (m): peaks' ``y``, ``z`` are measured from
+        the array reference point, ranges and angles from this centre.
+    source_yz_m : (float, float) or None
+        Earth-frame source (m) with roll and heave applied: the centre of the
+        main-lobe arcs (``None``: the grid centre).
+    latitude_deg, longitude_deg, heading_deg : float or None
+        Ship navigation at the ping (degree).
+    band_hz : (float, float)
+        Pulse band (Hz) (the SBP29's where unknown).
+    array_width_m : float
+        Receive array width across-track (m).
+    sound_speed_m_s : float
+        Sound speed the ping was imaged with (m/s).
+    """
+
+    index: int
+    centre_yz_m: tuple
+    source_yz_m: tuple | None = None
+    latitude_deg: float | None = None
+    longitude_deg: float | None = None
+    heading_deg: float | None = None
+    band_hz: tuple = SBP29_BAND_HZ
+    array_width_m: float = SBP29_ARRAY_WIDTH_M
+    sound_speed_m_s: float = SOUND_SPEED_M_S
+
+    @classmethod
+    def of_ping(cls, ping, grid: PolarGrid, sound_speed_m_s: float | None = None) -> "PingContext":
+        """The context of a :class:`~clbeam.model.ping.Ping` imaged on ``grid``
+        (at ``sound_speed_m_s``, default the ping's)."""
+        pulse = ping.pulse
+        lfm = pulse is not None and pulse.f0_hz is not None and pulse.f0_hz != pulse.f1_hz
+        band = (min(pulse.f0_hz, pulse.f1_hz), max(pulse.f0_hz, pulse.f1_hz)) if lfm else SBP29_BAND_HZ
+        n = ping.n_channels
+        width = float(np.ptp(ping.element_pos_m[:, 1])) * n / max(n - 1, 1)
+        source = to_earth_frame(ping.source_pos_m, roll_deg=ping.roll_deg, heave_m=ping.heave_m)
+        return cls(index=int(ping.index), centre_yz_m=tuple(float(v) for v in grid.centre(tuple(ping.source_pos_m[1:]))),
+                   source_yz_m=(float(source[1]), float(source[2])), latitude_deg=ping.latitude_deg,
+                   longitude_deg=ping.longitude_deg, heading_deg=ping.heading_deg, band_hz=band,
+                   array_width_m=width, sound_speed_m_s=float(sound_speed_m_s or ping.sound_speed_m_s))
+
+    @property
+    def navigation(self) -> dict:
+        """``latitude``, ``longitude``, ``heading`` (degree) for the ship columns of a row."""
+        return {"latitude": self.latitude_deg, "longitude": self.longitude_deg, "heading": self.heading_deg}
+
+
+def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None, grid: PolarGrid, *,
+              threshold: float = PEAK_THRESHOLD, mlh: bool = False, position: str = "lobe", **mlh_options) -> list[dict]:
+    """Rows of the peaks table for one ping (SPEC §3 step 7).
+
+    Parameters
+    ----------
+    context : PingContext
+        The ping's index, grid centre, source, navigation and sonar.
+    cf_smooth : numpy.ndarray
+        ``(n_angle, n_range)`` Hann-smoothed CF.
+    intensity : numpy.ndarray or None
+        ``(n_angle, n_range)`` intensity ``|S|^2`` (NaN in the rows without it).
+    grid : PolarGrid
+        The image grid.
+    threshold : float
+        Coherence-peak threshold on the smoothed CF (0-1).
+    mlh : bool
+        Merge the peaks of one main-lobe arc into one detection
+        (:func:`clbeam.imaging.mlh.suppress_main_lobe_highlights`, tolerances
+        from the context's band, array width and sound speed); the rows then
+        carry :data:`clbeam.imaging.mlh.MLH_COLUMNS`.
+    position : {"lobe", "peak"}
+        With ``mlh``: report the lobe fit or the sub-cell maximum.
+    **mlh_options
+        With ``mlh``: overrides of :func:`~clbeam.imaging.mlh.suppress_main_lobe_highlights`.
+
+    Returns
+    -------
+    list of dict
+        :data:`clbeam.io.peaks.PEAK_COLUMNS` and the ship's navigation, by decreasing CF.
+    """
+    peaks = coherence_peaks(cf_smooth, threshold)
+    nav = context.navigation
+    if mlh:
+        options = {**arc_tolerances(grid, band_hz=context.band_hz, array_width_m=context.array_width_m,
+                                    sound_speed_m_s=context.sound_speed_m_s), "source_yz_m": context.source_yz_m,
+                   **mlh_options}
+        dets = suppress_main_lobe_highlights(peaks, cf_smooth, grid, centre_yz_m=context.centre_yz_m, **options)
+        return detection_rows(dets, context.index, intensity, context.centre_yz_m, nav, position=position)
+    return [peak_row(context.index, grid.ranges_m[ir], grid.angles_deg[ia], context.centre_yz_m, cf_smooth[ia, ir],
+                     float(intensity[ia, ir]) if intensity is not None else np.nan, nav)
+            for ia, ir in peaks]
+
+
+def _value(ds, name: str, i: int, default=None):
+    if name not in ds.variables:
+        return default
+    v = float(ds[name].values[i])
+    return v if np.isfinite(v) else default
+
+
+def image_file_context(ds, i: int) -> PingContext:
+    """The :class:`PingContext` of ping ``i`` of an image file (:class:`~clbeam.io.images.ImageWriter`);
+    the SBP29's band and array and 1500 m/s where the file does not say."""
+    centre = (_value(ds, "centre_y", i, 0.0), _value(ds, "centre_z", i, 0.0))
+    source = (_value(ds, "source_y", i), _value(ds, "source_z", i))
+    band = ds.attrs.get("pulse_band_hz")
+    return PingContext(index=int(ds["ping"].values[i]), centre_yz_m=centre,
+                       source_yz_m=None if None in source else source, latitude_deg=_value(ds, "latitude", i),
+                       longitude_deg=_value(ds, "longitude", i), heading_deg=_value(ds, "heading", i),
+                       band_hz=SBP29_BAND_HZ if band is None else tuple(float(b) for b in np.ravel(band)),
+                       array_width_m=float(ds.attrs.get("array_width_m", SBP29_ARRAY_WIDTH_M)),
+                       sound_speed_m_s=_value(ds, "sound_speed", i, SOUND_SPEED_M_S))
+
+
+def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = False) -> list:
+    """Peak rows of every ping of an image dataset (:func:`peak_rows` on its ``cf``, Hann smoothed).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        An image file (:func:`clbeam.io.images.open_images`).
+    threshold : float
+        Coherence-peak threshold on the smoothed CF.
+    mlh : bool
+        One detection per main-lobe arc.
+    """
+    grid = PolarGrid(ds["range"].values, ds["angle"].values)
+    if mlh and "source_y" not in ds.variables:
+        log.warning("the image file predates per-ping source positions: main-lobe arcs are centred on the grid centre")
+    rows = []
+    for i in range(ds.sizes["ping"]):
+        cf_s = hann_smooth(ds["cf"].isel(ping=i).values)
+        inten = ds["intensity"].isel(ping=i).values if "intensity" in ds.variables else None
+        rows.extend(peak_rows(image_file_context(ds, i), cf_s, inten, grid, threshold=threshold, mlh=mlh))
+    return rows
