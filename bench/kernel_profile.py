@@ -42,7 +42,7 @@ def run_child(modes, compact: bool) -> None:
     eng = get_engine("opencl")
     for mode in modes:
         eng.beamform(inp, grid, interp=mode)
-        best = min(_timed(lambda: eng.beamform(inp, grid, interp=mode)) for _ in range(3))
+        best = min(_timed(lambda mode=mode: eng.beamform(inp, grid, interp=mode)) for _ in range(3))
         print(f"{mode} {best:.3f} {grid.n_cells * 64 / best:.3e}", flush=True)
 
 

@@ -16,16 +16,15 @@ from scenes import bandlimited_noise  # noqa: E402
 
 from clbeam.imaging.engine import INTERP_MODES, BeamformInput, get_engine  # noqa: E402
 from clbeam.imaging.engine.opencl import device_has_fp64  # noqa: E402
+from clbeam.imaging.raytrace import travel_time_tables  # noqa: E402
 from clbeam.model.grid import PolarGrid  # noqa: E402
+from clbeam.model.svp import SoundSpeedProfile  # noqa: E402
 
 data = bandlimited_noise((6, 160), seed=2)
 data[2, 40:45] = np.nan
 eo = np.zeros((6, 3))
 eo[:, 1] = np.linspace(-1.5, 1.5, 6)
 inp = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0)
-from clbeam.imaging.raytrace import travel_time_tables  # noqa: E402
-from clbeam.model.svp import SoundSpeedProfile
-
 # rays through a strong gradient: some cells of the tiny grid unreachable
 tabled = BeamformInput(data, 40000.0, 0.0005, 1500.0, eo, np.array([0.0, 0.2, 0.1]), centre_frequency_hz=5500.0,
                        tables=travel_time_tables(SoundSpeedProfile([0.0, 0.5], [1480.0, 1700.0]),

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from clbeam.constants import PEAK_THRESHOLD
 from clbeam.imaging.engine import get_engine
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
@@ -116,7 +117,7 @@ def peak_agreement(got_cf: np.ndarray, exact_cf: np.ndarray, threshold: float) -
 
 
 def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGrid | None = None,
-                  cases=DEFAULT_CASES, repeats: int = 3, reference_stride: int = 40, threshold: float = 0.25,
+                  cases=DEFAULT_CASES, repeats: int = 3, reference_stride: int = 40, threshold: float = PEAK_THRESHOLD,
                   default_mode: str = "cubic", progress=None) -> BenchResult:
     """Benchmark every case on ``ping`` (see the module docstring for what is measured).
 
@@ -138,75 +139,95 @@ def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGr
     grid = grid or paper_grid()
     accuracy_grid = accuracy_grid or accuracy_window()
     say = progress or (lambda msg: log.info(msg))
-    ref = get_engine("reference")
-    inputs = {}
-
-    def prepared(upsample):
-        if upsample not in inputs:
-            # straight rays: one input serves the timing grid, its subsample and the accuracy window
-            opts = ImagingOptions(upsample=upsample, use_svp=False)
-            inputs[upsample] = Imager(grid, opts, engine=ref).beamform_input(ping)
-        return inputs[upsample]
-
-    inp1 = prepared(1)
-    n_ch = inp1.n_channels
+    inputs = _Inputs(ping, grid)
+    inp1 = inputs.get(1)
     say("exact float64 reference on the accuracy window")
-    exact = ref.beamform(inp1, accuracy_grid, interp="exact", outputs=("intensity", "cf"))
-
+    exact = inputs.reference.beamform(inp1, accuracy_grid, interp="exact", outputs=("intensity", "cf"))
     say("NumPy reference and numba baselines")
-    sub = PolarGrid(grid.ranges_m, grid.angles_deg[::reference_stride])
-    t_ref = best_time(lambda: ref.beamform(inp1, sub, interp=default_mode, outputs=("intensity", "cf")), 1)
-    numpy_rate = sub.n_cells * n_ch / t_ref
-    try:
-        from clbeam.evaluation.baselines import numba_beamform
-
-        numba_beamform(inp1, PolarGrid(grid.ranges_m[:8], grid.angles_deg[:2]))  # compile
-        t_nb = best_time(lambda: numba_beamform(inp1, grid), max(1, repeats - 1))
-        numba_rate = grid.n_cells * n_ch / t_nb
-    except ImportError:
-        numba_rate = np.nan
-
-    rows = []
-    engines = {}
+    numpy_rate, numba_rate = _baseline_rates(inputs, grid, reference_stride, default_mode, repeats)
+    rows, engines = [], {}
     for mode, up, precision in cases:
         eng = engines.get(precision)
         if eng is None:
             eng = engines[precision] = get_engine("opencl", precision=precision)
-        inp = prepared(up)
         say(f"{mode} x{up} {precision}")
-        eng.beamform(inp, grid, interp=mode, outputs=("intensity", "cf"))  # build
-        t = best_time(lambda: eng.beamform(inp, grid, interp=mode, outputs=("intensity", "cf")), repeats)
-        if up > 1:  # the FFT upsampling is part of the mode's cost
-            t += best_time(lambda: upsample_analytic(inp1.data, up), 1)
-        acc = eng.beamform(inp, accuracy_grid, interp=mode, outputs=("intensity", "cf"))
-        prec, rec = peak_agreement(acc.cf, exact.cf, threshold)
-        rate = grid.n_cells * n_ch / t
-        rows.append(BenchRow(mode, up, precision, 1e3 * t, rate,
-                             intensity_error_db(acc.intensity.astype(np.float64), exact.intensity),
-                             float(np.max(np.abs(acc.cf - exact.cf))), prec, rec,
-                             rate / numpy_rate, rate / numba_rate))
-
+        rate, row = _mode_row(eng, inputs, grid, accuracy_grid, exact, (mode, up, precision), repeats, threshold)
+        rows.append(BenchRow(*row, rate / numpy_rate, rate / numba_rate))
     say("whole ping and skipping")
-    whole = {}
-    skipping = []
     eng = engines.get("float32") or get_engine("opencl")
+    whole, skipping = _whole_ping(eng, ping, grid, default_mode, repeats)
+    setup = {"grid": f"{grid.shape[1]} ranges x {grid.shape[0]} angles", "channels": inp1.n_channels,
+             "samples": inp1.n_samples, "sample_rate_hz": inp1.sample_rate_hz, "device": getattr(eng, "label", "?"),
+             "accuracy_window": f"{accuracy_grid.shape[1]} ranges x {accuracy_grid.shape[0]} angles"}
+    return BenchResult(rows, numpy_rate, numba_rate, whole, skipping, setup)
+
+
+class _Inputs:
+    """The ping's beamforming input per upsampling factor, prepared once."""
+
+    def __init__(self, ping, grid: PolarGrid):
+        self.ping, self.grid = ping, grid
+        self.reference = get_engine("reference")
+        self._inputs = {}
+
+    def get(self, upsample: int):
+        if upsample not in self._inputs:
+            # straight rays: one input serves the timing grid, its subsample and the accuracy window
+            opts = ImagingOptions(upsample=upsample, use_svp=False)
+            self._inputs[upsample] = Imager(self.grid, opts, engine=self.reference).beamform_input(self.ping)
+        return self._inputs[upsample]
+
+
+def _baseline_rates(inputs: _Inputs, grid: PolarGrid, stride: int, mode: str, repeats: int) -> tuple:
+    """Cells x channels per second of the NumPy reference (every ``stride``-th angle row) and of the
+    numba baseline (NaN without numba)."""
+    inp1, ref = inputs.get(1), inputs.reference
+    sub = PolarGrid(grid.ranges_m, grid.angles_deg[::stride])
+    t_ref = best_time(lambda: ref.beamform(inp1, sub, interp=mode, outputs=("intensity", "cf")), 1)
+    numpy_rate = sub.n_cells * inp1.n_channels / t_ref
+    try:
+        from clbeam.evaluation.baselines import numba_beamform
+    except ImportError:
+        return numpy_rate, np.nan
+    numba_beamform(inp1, PolarGrid(grid.ranges_m[:8], grid.angles_deg[:2]))  # compile
+    t_nb = best_time(lambda: numba_beamform(inp1, grid), max(1, repeats - 1))
+    return numpy_rate, grid.n_cells * inp1.n_channels / t_nb
+
+
+def _mode_row(eng, inputs: _Inputs, grid: PolarGrid, accuracy_grid: PolarGrid, exact, case: tuple, repeats: int,
+              threshold: float) -> tuple:
+    """Rate (cells x channels / s) and the measured fields of one case's :class:`BenchRow`."""
+    mode, up, precision = case
+    inp = inputs.get(up)
+    outputs = ("intensity", "cf")
+    eng.beamform(inp, grid, interp=mode, outputs=outputs)  # build
+    t = best_time(lambda: eng.beamform(inp, grid, interp=mode, outputs=outputs), repeats)
+    if up > 1:  # the FFT upsampling is part of the mode's cost
+        t += best_time(lambda: upsample_analytic(inputs.get(1).data, up), 1)
+    acc = eng.beamform(inp, accuracy_grid, interp=mode, outputs=outputs)
+    prec, rec = peak_agreement(acc.cf, exact.cf, threshold)
+    rate = grid.n_cells * inp.n_channels / t
+    return rate, (mode, up, precision, 1e3 * t, rate, intensity_error_db(acc.intensity.astype(np.float64), exact.intensity),
+                  float(np.max(np.abs(acc.cf - exact.cf))), prec, rec)
+
+
+def _whole_ping(eng, ping, grid: PolarGrid, mode: str, repeats: int) -> tuple:
+    """Time per ping of the whole chain (raw to peaks) by stage, and with each skipping option."""
+    whole, skipping = {}, []
     for label, opts in (
-        ("full grid, intensity + CF", ImagingOptions(interp=default_mode)),
-        ("intensity only", ImagingOptions(interp=default_mode, outputs=("intensity",))),
-        ("seabed band -5/+40 m", ImagingOptions(interp=default_mode, seabed_band_m=(5.0, 40.0))),
+        ("full grid, intensity + CF", ImagingOptions(interp=mode)),
+        ("intensity only", ImagingOptions(interp=mode, outputs=("intensity",))),
+        ("seabed band -5/+40 m", ImagingOptions(interp=mode, seabed_band_m=(5.0, 40.0))),
     ):
         imager = Imager(grid, opts, engine=eng)
         imager.image(ping)
-        t = best_time(lambda: imager.image(ping), max(1, repeats - 1))
+        t = best_time(lambda imager=imager: imager.image(ping), max(1, repeats - 1))
         skipping.append({"what": label, "ms_per_ping": 1e3 * t})
         if label.startswith("full"):
             img = imager.image(ping)
             whole = {k: 1e3 * v for k, v in img.timings_s.items()}
             whole["total_ms"] = 1e3 * t
-    setup = {"grid": f"{grid.shape[1]} ranges x {grid.shape[0]} angles", "channels": n_ch,
-             "samples": inp1.n_samples, "sample_rate_hz": inp1.sample_rate_hz, "device": getattr(eng, "label", "?"),
-             "accuracy_window": f"{accuracy_grid.shape[1]} ranges x {accuracy_grid.shape[0]} angles"}
-    return BenchResult(rows, numpy_rate, numba_rate, whole, skipping, setup)
+    return whole, skipping
 
 
 def markdown_table(result: BenchResult) -> str:

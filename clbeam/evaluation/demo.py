@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from clbeam.constants import MAP_THRESHOLD, PEAK_THRESHOLD
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.io.figures import plot_cross_track
 from clbeam.io.images import ImageWriter
@@ -123,8 +124,6 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
     grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=max_range_m, angles_deg=(-80.0, 80.0))
     imager = Imager(grid, ImagingOptions(interp=interp), backend=backend, device=device)
     names = ds["target"].values if "target" in ds.coords else np.arange(ds.sizes.get("target", 0))
-    if "truth_target_name" in ds.variables:
-        names = ds["truth_target_name"].values
     scores, others, rows, files = [], [], [], [ping_path]
     for key in ("compress_s", "image_s", "postprocess_s", "figures_s"):
         t[key] = 0.0
@@ -137,26 +136,34 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
                 t[k] = t.get(k, 0.0) + v
             writer.write(ping.index, img)
             rows.extend(img.peaks)
-            # where a straight-ray image shows each pipe (nearest point, refraction), else its crossing
-            key = "truth_target_image_y" if "truth_target_image_y" in ds.variables else "truth_target_y"
-            ty = ds[key].values[ping.index]
-            tz = ds[key.replace("_y", "_z")].values[ping.index]
-            s, o = score_targets(img.peaks, ty, tz, names, ping.index)
+            truth = _truth_yz(ds, ping.index)
+            s, o = score_targets(img.peaks, truth[:, 0], truth[:, 1], names, ping.index)
             scores += s
             others += o
             if ping.index == 0 or ping.index == len(f) - 1:
                 t1 = time.perf_counter()
-                png = out / f"ping{ping.index:03d}.png"
-                seabed = float(ds["truth_seabed_z"].values[ping.index]) if "truth_seabed_z" in ds.variables else None
-                plot_cross_track(img, png, seabed_z_m=seabed, targets_yz_m=np.stack([ty, tz], axis=1),
-                                 title=f"{scene}, ping {ping.index}")
-                files.append(png)
+                files.append(_figure(out, img, ds, truth, scene))
                 t["figures_s"] += time.perf_counter() - t1
     files += [out / "images.nc", write_peaks_csv(rows, out / "peaks.csv")]
     return DemoResult(scores, others, files, t)
 
 
-def summary_lines(result: DemoResult, threshold: float = 0.25) -> list[str]:
+def _truth_yz(ds, ping: int) -> np.ndarray:
+    """``(k, 2)`` where a straight-ray image shows each target of ``ping`` (nearest point, refraction),
+    else its crossing of the image plane."""
+    key = "truth_target_image" if "truth_target_image_y" in ds.variables else "truth_target"
+    return np.stack([ds[f"{key}_y"].values[ping], ds[f"{key}_z"].values[ping]], axis=1)
+
+
+def _figure(out: Path, img, ds, truth_yz: np.ndarray, scene: str) -> Path:
+    """The paper's Fig. 4-style figure of one ping, with the seabed and the targets."""
+    png = out / f"ping{img.ping:03d}.png"
+    seabed = float(ds["truth_seabed_z"].values[img.ping]) if "truth_seabed_z" in ds.variables else None
+    plot_cross_track(img, png, seabed_z_m=seabed, targets_yz_m=truth_yz, title=f"{scene}, ping {img.ping}")
+    return png
+
+
+def summary_lines(result: DemoResult, threshold: float = PEAK_THRESHOLD) -> list[str]:
     """Human-readable summary: detections per pipeline, other peaks, timings."""
     lines = ["detections (coherence peak within 2 m horizontally of the pipeline):"]
     for name in dict.fromkeys(s.name for s in result.scores):
@@ -167,9 +174,10 @@ def summary_lines(result: DemoResult, threshold: float = 0.25) -> list[str]:
         lines.append(f"  pipeline {name:>2} ({where}): detected in {len(hits)}/{len(ss)} ping(s)"
                      + (f", best CF {best.cf:.2f} at {best.offset_m:.1f} m" if best else ""))
     n_pings = len({s.ping for s in result.scores}) or 1
-    strong = sum(p["cf"] > 0.4 for p in result.other_peaks)
+    strong = sum(p["cf"] > MAP_THRESHOLD for p in result.other_peaks)
     lines.append(f"other coherence peaks (seabed and sub-bottom scatterers, sidelobes): "
-                 f"{len(result.other_peaks) / n_pings:.0f} per ping above {threshold:g}, {strong / n_pings:.0f} above 0.4")
+                 f"{len(result.other_peaks) / n_pings:.0f} per ping above {threshold:g}, "
+                 f"{strong / n_pings:.0f} above {MAP_THRESHOLD:g}")
     lines.append("time: " + ", ".join(f"{k[:-2]} {v:.1f} s" for k, v in result.timings_s.items()))
     lines.append("files: " + ", ".join(str(p) for p in result.files))
     return lines

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from clbeam.constants import PEAK_THRESHOLD
 from clbeam.errors import OptionError, require
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
 
@@ -51,7 +52,7 @@ class StackedImage:
     intensity: np.ndarray
     cf: np.ndarray
     cf_smooth: np.ndarray
-    threshold: float = 0.25
+    threshold: float = PEAK_THRESHOLD
 
     @functools.cached_property
     def peaks(self) -> np.ndarray:
@@ -75,7 +76,7 @@ class PingStack:
     stack ending at that ping.
     """
 
-    def __init__(self, k: int, threshold: float = 0.25):
+    def __init__(self, k: int, threshold: float = PEAK_THRESHOLD):
         require(int(k) == k and k >= 1, OptionError, f"pings per stack must be an integer >= 1, got {k!r}")
         self.k = int(k)
         self.threshold = threshold

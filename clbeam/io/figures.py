@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from clbeam.constants import MAP_THRESHOLD, PEAK_THRESHOLD
 from clbeam.model.grid import PolarGrid
 
 
@@ -81,43 +82,10 @@ def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m
     y0, y1, z0, z1 = image_extent(grid, c)
     if zoom is None:
         zoom = (y0, y1, (seabed_z_m - 40) if seabed_z_m else z0, (seabed_z_m + 40) if seabed_z_m else z1)
-    step = pixel_m or max((y1 - y0) / 1400, (z1 - z0) / 600, 0.2)
-    ys, zs = np.arange(y0, y1, step), np.arange(z0, z1, step)
-    inten = img.intensity if img.intensity is not None else np.abs(img.sums.s) ** 2
-    db = 10 * np.log10(np.maximum(inten, inten.max() * 1e-30) / inten.max())
-    # the nadir specular echo dominates the maximum: scale to the image's bright tail instead
-    computed = db[inten > 0]
-    top = float(np.percentile(computed, 99.95)) if computed.size else 0.0
-
     fig, axes = plt.subplots(3, 1, figsize=(11, 11), dpi=110, constrained_layout=True)
-    ax = axes[0]
-    im = ax.imshow(polar_to_raster(db, grid, c, ys, zs), extent=(ys[0], ys[-1], zs[-1], zs[0]), aspect="auto",
-                   cmap="viridis", vmin=top - dynamic_range_db, vmax=top, interpolation="nearest")
-    fig.colorbar(im, ax=ax, label="intensity (dB re max)")
-    ax.add_patch(plt.Rectangle((zoom[0], zoom[2]), zoom[1] - zoom[0], zoom[3] - zoom[2], fill=False, ec="white", lw=1))
-    ax.set_title((title + ": " if title else "") + "(a) intensity |Σ p|²")
-
-    zy = np.arange(zoom[0], zoom[1], max((zoom[1] - zoom[0]) / 1400, 0.2))
-    zz = np.arange(zoom[2], zoom[3], max((zoom[3] - zoom[2]) / 400, 0.1))
-    cf = img.cf_smooth if img.cf_smooth is not None else img.cf
-    ax = axes[1]
-    im = ax.imshow(polar_to_raster(cf, grid, c, zy, zz), extent=(zy[0], zy[-1], zz[-1], zz[0]), aspect="auto",
-                   cmap="magma", vmin=0, vmax=1, interpolation="nearest")
-    fig.colorbar(im, ax=ax, label="coherence factor")
-    ax.set_title("(b) coherence factor (7-point Hann smoothed)")
-
-    ax = axes[2]
-    ax.set_facecolor("#f4f4f4")
-    if img.peaks:
-        py = np.array([p["y_m"] for p in img.peaks])
-        pz = np.array([p["z_m"] for p in img.peaks])
-        pc = np.array([p["cf"] for p in img.peaks])
-        sc = ax.scatter(py, pz, c=pc, s=10 + 40 * pc, cmap="plasma", vmin=0.25, vmax=1, edgecolors="none", zorder=3)
-        fig.colorbar(sc, ax=ax, label="coherence peak CF")
-    ax.set_xlim(zoom[0], zoom[1])
-    ax.set_ylim(zoom[3], zoom[2])
-    ax.set_title(f"(c) coherence peaks ({len(img.peaks)} above threshold)")
-
+    _intensity_panel(fig, axes[0], img, (y0, y1, z0, z1), zoom, dynamic_range_db, pixel_m, title)
+    _cf_panel(fig, axes[1], img, zoom)
+    _peaks_panel(fig, axes[2], img.peaks, zoom)
     for k, ax in enumerate(axes):
         if seabed_z_m is not None:
             ax.axhline(seabed_z_m, color="#8b5a2b", ls=":", lw=1.2, label="seabed" if k == 2 else None)
@@ -136,7 +104,52 @@ def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m
     return path
 
 
-def plot_peak_map(rows, path, *, targets=None, title: str = "coherence peaks over the line", threshold: float = 0.4):
+def _intensity_panel(fig, ax, img, extent, zoom, dynamic_range_db: float, pixel_m, title: str) -> None:
+    """(a) intensity in dB with the box of the zoomed panels."""
+    y0, y1, z0, z1 = extent
+    step = pixel_m or max((y1 - y0) / 1400, (z1 - z0) / 600, 0.2)
+    ys, zs = np.arange(y0, y1, step), np.arange(z0, z1, step)
+    inten = img.intensity if img.intensity is not None else np.abs(img.sums.s) ** 2
+    db = 10 * np.log10(np.maximum(inten, inten.max() * 1e-30) / inten.max())
+    # the nadir specular echo dominates the maximum: scale to the image's bright tail instead
+    computed = db[inten > 0]
+    top = float(np.percentile(computed, 99.95)) if computed.size else 0.0
+    im = ax.imshow(polar_to_raster(db, img.grid, img.centre_yz_m, ys, zs), extent=(ys[0], ys[-1], zs[-1], zs[0]),
+                   aspect="auto", cmap="viridis", vmin=top - dynamic_range_db, vmax=top, interpolation="nearest")
+    fig.colorbar(im, ax=ax, label="intensity (dB re max)")
+    ax.add_patch(pyplot().Rectangle((zoom[0], zoom[2]), zoom[1] - zoom[0], zoom[3] - zoom[2], fill=False, ec="white",
+                                    lw=1))
+    ax.set_title((title + ": " if title else "") + "(a) intensity |Σ p|²")
+
+
+def _cf_panel(fig, ax, img, zoom) -> None:
+    """(b) the smoothed coherence factor in the zoom window."""
+    zy = np.arange(zoom[0], zoom[1], max((zoom[1] - zoom[0]) / 1400, 0.2))
+    zz = np.arange(zoom[2], zoom[3], max((zoom[3] - zoom[2]) / 400, 0.1))
+    cf = img.cf_smooth if img.cf_smooth is not None else img.cf
+    im = ax.imshow(polar_to_raster(cf, img.grid, img.centre_yz_m, zy, zz), extent=(zy[0], zy[-1], zz[-1], zz[0]),
+                   aspect="auto", cmap="magma", vmin=0, vmax=1, interpolation="nearest")
+    fig.colorbar(im, ax=ax, label="coherence factor")
+    ax.set_title("(b) coherence factor (7-point Hann smoothed)")
+
+
+def _peaks_panel(fig, ax, peaks: list, zoom) -> None:
+    """(c) the coherence peaks, coloured by CF, in the zoom window."""
+    ax.set_facecolor("#f4f4f4")
+    if peaks:
+        py = np.array([p["y_m"] for p in peaks])
+        pz = np.array([p["z_m"] for p in peaks])
+        pc = np.array([p["cf"] for p in peaks])
+        sc = ax.scatter(py, pz, c=pc, s=10 + 40 * pc, cmap="plasma", vmin=PEAK_THRESHOLD, vmax=1, edgecolors="none",
+                        zorder=3)
+        fig.colorbar(sc, ax=ax, label="coherence peak CF")
+    ax.set_xlim(zoom[0], zoom[1])
+    ax.set_ylim(zoom[3], zoom[2])
+    ax.set_title(f"(c) coherence peaks ({len(peaks)} above threshold)")
+
+
+def plot_peak_map(rows, path, *, targets=None, title: str = "coherence peaks over the line",
+                  threshold: float = MAP_THRESHOLD):
     """Persistence map like Holland et al. Figs. 9-10: peaks of all pings by
     cross-track position (y) and ping, coloured by CF."""
     plt = pyplot()

@@ -157,7 +157,8 @@ class PingDataset:
         self.kind = str(s.attrs.get("kind", "raw"))
         self._need(self.kind in ("raw", "analytic"), f"variable '{s.name}' has kind='{self.kind}', expected 'raw' or 'analytic'")
         is_complex = np.issubdtype(s.dtype, np.complexfloating) or self._split
-        self._need(not (self.kind == "raw" and is_complex), f"variable '{s.name}' is complex but kind='raw'; raw pressure must be real")
+        self._need(not (self.kind == "raw" and is_complex),
+                   f"variable '{s.name}' is complex but kind='raw'; raw pressure must be real")
         self._need(not (self.kind == "analytic" and not is_complex),
                    f"variable '{s.name}' has kind='analytic' but is real; store it complex or as 'samples_r'/'samples_i'")
         self.n_pings, self.n_channels, self.n_samples = (int(ds.sizes[d]) for d in ("ping", "channel", "sample"))

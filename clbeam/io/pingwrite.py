@@ -70,6 +70,30 @@ def _pulse_variables(pulse) -> dict:
     return {"pulse_f0": pulse.f0_hz, "pulse_f1": pulse.f1_hz, "pulse_duration": pulse.duration_s}
 
 
+def _optional_variables(pings) -> dict:
+    """The optional SPEC §7 variables the pings carry: navigation, times, channel mask, profile, responses."""
+    values = {}
+    for name, attr in (("pitch", "pitch_deg"), ("heading", "heading_deg"), ("latitude", "latitude_deg"),
+                       ("longitude", "longitude_deg")):
+        per = _per_ping(pings, attr)
+        if per is not None:
+            values[name] = per
+    if any(p.time is not None for p in pings):
+        values["ping_time"] = np.array([np.datetime64("NaT", "ns") if p.time is None else p.time for p in pings],
+                                       dtype="datetime64[ns]")
+    valid = np.stack([np.asarray(p.channel_valid, dtype=bool) for p in pings])
+    if not valid.all():
+        values["channel_valid"] = valid[0] if (valid == valid[0]).all() else valid
+    svp = _same(pings, "svp", "sound-speed profile")
+    if svp is not None:
+        values["svp_depth"], values["svp_speed"] = svp.depths_m, svp.speeds_m_s
+    for name in ("element_gain_db", "element_phase_deg"):
+        value = _same(pings, name, name.replace("_", " "))
+        if value is not None:
+            values[name] = value
+    return values
+
+
 def dataset_from_pings(pings, *, samples_dtype=None, attrs: dict | None = None) -> xr.Dataset:
     """One SPEC §7 dataset holding ``pings``.
 
@@ -114,24 +138,7 @@ def dataset_from_pings(pings, *, samples_dtype=None, attrs: dict | None = None) 
     }
     for name, value in zip(("source_x", "source_y", "source_z"), _same(pings, "source_pos_m", "source position")):
         values[name] = float(value)
-    for name, attr in (("pitch", "pitch_deg"), ("heading", "heading_deg"), ("latitude", "latitude_deg"),
-                       ("longitude", "longitude_deg")):
-        per = _per_ping(pings, attr)
-        if per is not None:
-            values[name] = per
-    if any(p.time is not None for p in pings):
-        values["ping_time"] = np.array([np.datetime64("NaT", "ns") if p.time is None else p.time for p in pings],
-                                       dtype="datetime64[ns]")
-    valid = np.stack([np.asarray(p.channel_valid, dtype=bool) for p in pings])
-    if not valid.all():
-        values["channel_valid"] = valid[0] if (valid == valid[0]).all() else valid
-    svp = _same(pings, "svp", "sound-speed profile")
-    if svp is not None:
-        values["svp_depth"], values["svp_speed"] = svp.depths_m, svp.speeds_m_s
-    for name, attr in (("element_gain_db", "element_gain_db"), ("element_phase_deg", "element_phase_deg")):
-        value = _same(pings, attr, name.replace("_", " "))
-        if value is not None:
-            values[name] = value
+    values.update(_optional_variables(pings))
     data = {name: ping_variable(name, v) for name, v in values.items()}
     dims, arr, var_attrs = ping_variable("samples", samples)
     data["samples"] = (dims, arr, {**var_attrs, "kind": kind})

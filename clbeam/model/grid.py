@@ -51,10 +51,12 @@ class PolarGrid:
         require(r[0] >= 0, GridError, f"grid ranges must be >= 0 m, got minimum {r.min():g} m")
         require(bool(np.all(np.diff(r) > 0)), GridError, "grid ranges must be strictly increasing")
         require(bool(np.all(np.diff(a) > 0)), GridError, "grid angles must be strictly increasing")
-        require(a[0] >= -90 and a[-1] <= 90, GridError, f"grid angles must lie within [-90, 90] degrees, got [{a[0]:g}, {a[-1]:g}]")
+        require(a[0] >= -90 and a[-1] <= 90, GridError,
+                f"grid angles must lie within [-90, 90] degrees, got [{a[0]:g}, {a[-1]:g}]")
         if self.centre_yz_m is not None:
             c = tuple(float(v) for v in self.centre_yz_m)
-            require(len(c) == 2 and all(np.isfinite(c)), GridError, f"grid centre must be two finite numbers (y, z) in m, got {self.centre_yz_m!r}")
+            require(len(c) == 2 and all(np.isfinite(c)), GridError,
+                    f"grid centre must be two finite numbers (y, z) in m, got {self.centre_yz_m!r}")
             object.__setattr__(self, "centre_yz_m", c)
         r.setflags(write=False)
         a.setflags(write=False)
@@ -72,7 +74,8 @@ class PolarGrid:
         Defaults are the paper's grid (0.2 m, 0.1°) over 0–1100 m and ±80°.
         """
         require(np.isfinite(range_res_m) and range_res_m > 0, GridError, f"range resolution must be > 0 m, got {range_res_m!r}")
-        require(np.isfinite(angle_res_deg) and angle_res_deg > 0, GridError, f"angle resolution must be > 0 degrees, got {angle_res_deg!r}")
+        require(np.isfinite(angle_res_deg) and angle_res_deg > 0, GridError,
+                f"angle resolution must be > 0 degrees, got {angle_res_deg!r}")
         require(np.isfinite(max_range_m) and max_range_m > min_range_m >= 0, GridError,
                 f"range window must satisfy 0 <= min < max, got min {min_range_m!r} m, max {max_range_m!r} m")
         a0, a1 = (float(v) for v in angles_deg)

@@ -94,3 +94,18 @@ def test_installed_command_runs_devices_and_help():
     for opt in ("--range-res", "--angle-res", "--max-range", "--angles", "--interp", "--outputs", "--backend", "--device"):
         assert opt in r.stdout
     assert "{nearest,linear" in r.stdout  # the modes as a choice list
+
+
+def test_peaks_mlh_from_an_image_file_equal_those_written_while_imaging(ping_file, tmp_path):
+    """``clbeam peaks --mlh`` rebuilds each ping's context (source with roll, sonar) from the file:
+    the merged detections equal those ``clbeam image --mlh`` made from the pings themselves."""
+    out, p1, p2 = tmp_path / "img.nc", tmp_path / "a.csv", tmp_path / "b.csv"
+    grid = ["--max-range", "50", "--angles", "-20", "30", "--angle-res", "0.5"]
+    assert main(["image", str(ping_file), "-o", str(out), "--peaks", str(p1), *grid, "--mlh", "-q"]) == 0
+    assert main(["peaks", str(out), "-o", str(p2), "--mlh", "-q"]) == 0
+    a, b = read_peaks_csv(p1), read_peaks_csv(p2)
+    assert len(a) == len(b) > 0 and {"n_merged", "arc_extent_deg"} <= set(b[0])
+    key = lambda r: (r["ping"], round(r["angle_deg"], 6), round(r["range_m"], 6))  # noqa: E731
+    for ra, rb in zip(sorted(a, key=key), sorted(b, key=key)):
+        assert ra["n_merged"] == rb["n_merged"]
+        assert ra["y_m"] == pytest.approx(rb["y_m"], abs=1e-4) and ra["z_m"] == pytest.approx(rb["z_m"], abs=1e-4)

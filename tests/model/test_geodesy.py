@@ -58,7 +58,8 @@ def test_one_arc_minute_of_latitude_is_the_meridian_radius_times_the_angle():
         return WGS84_A_M * (1 - e2) / (1 - e2 * math.sin(math.radians(lat)) ** 2) ** 1.5
 
     arc = math.radians(1 / 60)
-    expected = [0.0, meridian_radius(34 + 0.5 / 60) * arc, (meridian_radius(34 + 0.5 / 60) + meridian_radius(34 + 1.5 / 60)) * arc]
+    first, second = meridian_radius(34 + 0.5 / 60) * arc, meridian_radius(34 + 1.5 / 60) * arc
+    expected = [0.0, first, first + second]
     for use in (True, False):
         d = along_track_m([34.0, 34.0 + 1 / 60, 34.0 + 2 / 60], [-119.8, -119.8, -119.8], use_pyproj=use)
         np.testing.assert_allclose(d, expected, rtol=1e-9)

@@ -18,10 +18,10 @@ from clbeam.cli.main import build_parser, main
 from clbeam.errors import ClbeamError, OptionError
 from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.imager import Imager, ImagingOptions
+from clbeam.imaging.vertical_beam import TraceAxis
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
-from clbeam.seabed.profile import TraceAxis
 
 TARGET_R = 75.0  # m, directly below the source (earth frame)
 AMPLITUDE = 2.5
@@ -258,10 +258,10 @@ def test_missing_segyio_is_one_line_naming_the_extra(point_file, tmp_path, capsy
 
 
 def test_failure_midway_leaves_no_partial_segy(point_file, tmp_path, monkeypatch):
-    from clbeam.seabed import profile
+    from clbeam.imaging import vertical_beam
 
     calls = []
-    real = profile.VerticalBeam.__call__
+    real = vertical_beam.VerticalBeam.__call__
 
     def failing(self, ping):
         calls.append(ping.index)
@@ -269,7 +269,7 @@ def test_failure_midway_leaves_no_partial_segy(point_file, tmp_path, monkeypatch
             raise ClbeamError("ping 1 failed")
         return real(self, ping)
 
-    monkeypatch.setattr(profile.VerticalBeam, "__call__", failing)
+    monkeypatch.setattr(vertical_beam.VerticalBeam, "__call__", failing)
     out = tmp_path / "p.sgy"
     with pytest.raises(ClbeamError, match="ping 1 failed"):
         run_profile([point_file, "-o", out, "-q"])

@@ -247,28 +247,29 @@ class OpenCLEngine(Engine):
         require(mode.kernel_id >= 0, OptionError,
                 f"interpolation mode '{mode.name}' exists in the reference backend only")
 
-    def _beamform(self, inp, grid, mode, outs, range_window_m) -> Sums:
+    def _beamform(self, inp, grid, mode, outs, range_window_m, scale: float) -> Sums:
         """Image one ping on the device (see :meth:`Engine.beamform`): one
         command queue per engine, so calls from several threads take turns."""
         require(2 * inp.n_channels * (inp.n_samples + 1) < 2**31, GridError,
                 f"{inp.n_channels} channels x {inp.n_samples} samples exceed the kernel's 32-bit indexing; "
                 "image fewer samples")
         with self._lock:
-            launch = self._prepare(inp, grid, mode, outs, range_window_m)
+            launch = self._prepare(inp, grid, mode, outs, range_window_m, scale)
             out = _Outputs(self, grid, outs, inp.weights is not None, launch.rows)
             for a0 in range(0, grid.shape[0], launch.rows):
                 self._run_tile(launch, out, a0)
             self.queue.finish()
         return out.sums()
 
-    def _prepare(self, inp, grid, mode, outs, range_window_m) -> "_Launch":
-        """Kernel, uploaded channel data and per-range tables, cell windows and tile size of one call."""
+    def _prepare(self, inp, grid, mode, outs, range_window_m, scale: float) -> "_Launch":
+        """Kernel, uploaded channel data (times ``scale``) and per-range tables, cell windows and tile size of one call."""
         real = self.real
         data = np.asarray(inp.data)
         if mode.baseband:
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
         inter = np.empty((inp.n_channels, inp.n_samples, 2), dtype=real)
-        inter[..., 0], inter[..., 1] = data.real, data.imag
+        np.multiply(data.real, scale, out=inter[..., 0])
+        np.multiply(data.imag, scale, out=inter[..., 1])
         o = np.asarray(inp.element_offsets_m, dtype=np.float64)
         chan = np.stack([o[:, 1], o[:, 2], np.sum(o * o, axis=1), o[:, 0] ** 2], axis=1).astype(real)
         so = np.asarray(inp.source_offset_m, dtype=np.float64)

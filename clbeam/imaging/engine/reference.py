@@ -103,9 +103,9 @@ class ReferenceEngine(Engine):
                 f"the reference backend runs on the CPU; device {device!r} applies to the OpenCL backend only")
 
     def _beamform(self, inp: BeamformInput, grid: PolarGrid, mode: InterpMode, outs: frozenset,
-                  range_window_m: np.ndarray | None) -> Sums:
+                  range_window_m: np.ndarray | None, scale: float) -> Sums:
         """The sums over channels, cell block by cell block (see :meth:`Engine.beamform`)."""
-        data = np.asarray(inp.data, dtype=np.complex128)
+        data = np.asarray(inp.data, dtype=np.complex128) * scale
         if mode.baseband:
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
         n_cells = grid.n_cells

@@ -179,7 +179,11 @@ def table2_figures(out_dir, *, sample_rate_hz: float = 48000.0, data: Table2Trac
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     data = data or table2_traces(sample_rate_hz=sample_rate_hz)
+    return {"fig8": _fig8(data, out / "fig8_compressed_table2.png"), "fig9": _fig9(data, out / "fig9_spectra_table2.png")}
 
+
+def _fig8(data: Table2Traces, path: Path) -> Path:
+    """Fig. 8: the compressed traces of both layouts, one panel per chirp."""
     fig = _figure(9.0, 6.0)
     for row, name in enumerate(CHIRPS):
         ax = fig.add_subplot(2, 1, row + 1)
@@ -196,9 +200,12 @@ def table2_figures(out_dir, *, sample_rate_hz: float = 48000.0, data: Table2Trac
     ax.set_xlabel("two-way time (ms)")
     fig.suptitle("Compressed backscattered field (Rakotonarivo Fig. 8, Table 2 layouts)")
     fig.tight_layout()
-    fig8 = out / "fig8_compressed_table2.png"
-    fig.savefig(fig8)
+    fig.savefig(path)
+    return path
 
+
+def _fig9(data: Table2Traces, path: Path) -> Path:
+    """Fig. 9: spectra of echoes 1 and 3 of both layouts (and a smooth seafloor), per chirp."""
     fig = _figure(9.0, 6.5)
     for row, name in enumerate(CHIRPS):
         for col, echo in enumerate((0, 2)):
@@ -219,6 +226,5 @@ def table2_figures(out_dir, *, sample_rate_hz: float = 48000.0, data: Table2Trac
             ax.legend(fontsize=7)
     fig.suptitle("Echo spectra (Rakotonarivo Fig. 9)")
     fig.tight_layout()
-    fig9 = out / "fig9_spectra_table2.png"
-    fig.savefig(fig9)
-    return {"fig8": fig8, "fig9": fig9}
+    fig.savefig(path)
+    return path

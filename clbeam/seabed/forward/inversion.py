@@ -544,6 +544,7 @@ class _Inversion:
         return tuple(echoes), tuple(layers)
 
 
+# 70 lines for its 13 documented parameters; the body is 20 lines of checks and the steps of _Inversion
 def invert_trace(compressed, chirp: Chirp, *, sample_rate_hz: float, t0_s: float = 0.0, p0: float = 1.0,
                  water_sound_speed_m_s: float = 1500.0, layer_sound_speeds_m_s=None,
                  noise_std: float | None = None, max_echoes: int = 8, false_alarm: float = 1e-4,

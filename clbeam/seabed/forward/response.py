@@ -143,31 +143,7 @@ def layer_echoes(seabed: Seabed, freq_hz, *, incidence_deg: float = 0.0, p0: flo
         t_phase += leg
         two_way_h = two_way_h * np.exp(-2 * DB_TO_NP * above.attenuation.db_per_m(f) * path)
 
-        rho_top = (top.transition_top_density_kg_m3 or above.density_kg_m3) if top.has_transition \
-            else below.density_kg_m3
-        r1, t1, t1p = fluid_interface(above.density_kg_m3, above.sound_speed_m_s, cos_a,
-                                      rho_top, below.sound_speed_m_s, cos_b)
-        r1 = r1 * np.ones(f.size)
-        if top.is_rough:
-            r1 = r1 * reflection_roughness_factor(f, top.roughness_m, above.sound_speed_m_s, cos_a,
-                                                  top.roughness_regime)
-            tf = transmission_roughness_factor(f, top.roughness_m, above.sound_speed_m_s, cos_a,
-                                               below.sound_speed_m_s, cos_b, top.roughness_regime)
-            t1, t1p = t1 * tf, t1p * tf
-        if top.has_transition:
-            rt, tt, ttp = transition_coefficients(f, thickness_m=top.transition_m, density_top_kg_m3=rho_top,
-                                                  density_bottom_kg_m3=below.density_kg_m3,
-                                                  sound_speed_m_s=below.sound_speed_m_s,
-                                                  attenuation=below.attenuation, cos_theta=cos_b)
-            # base of the bed: same density and speed on both sides, so r2 = 0 and t2 = t2' = 1
-            v = r1 + t1 * t1p * rt
-            t_down, t_up = t1 * tt, t1p * ttp
-            bed_time = (2 * top.transition_m / (below.sound_speed_m_s * cos_b.real)) if cos_b.imag == 0 else 0.0
-        else:
-            v = r1
-            t_down, t_up = t1 * np.ones(f.size), t1p * np.ones(f.size)
-            bed_time = 0.0
-
+        v, t_down, t_up, bed_time = _interface_terms(f, above, below, top, cos_a, cos_b)
         i = j - 1
         times[i], delays[i] = t_full, t_phase
         spread[i] = p0 / (2 * c1 * t_full)
@@ -175,6 +151,32 @@ def layer_echoes(seabed: Seabed, freq_hz, *, incidence_deg: float = 0.0, p0: flo
         two_way_t = two_way_t * t_down * t_up
         t_full += bed_time
     return EchoSet(f, times, delays, refl, trans, att, spread, cos, float(incidence_deg))
+
+
+def _interface_terms(f: np.ndarray, above, below, top, cos_a, cos_b) -> tuple:
+    """Reflection ``V`` of an interface seen from above, its down- and up-going
+    transmissions and the extra two-way time of a transitional bed under it
+    (eqs. 16-18, roughness and transition included), each per frequency."""
+    rho_top = (top.transition_top_density_kg_m3 or above.density_kg_m3) if top.has_transition \
+        else below.density_kg_m3
+    r1, t1, t1p = fluid_interface(above.density_kg_m3, above.sound_speed_m_s, cos_a,
+                                  rho_top, below.sound_speed_m_s, cos_b)
+    r1 = r1 * np.ones(f.size)
+    if top.is_rough:
+        r1 = r1 * reflection_roughness_factor(f, top.roughness_m, above.sound_speed_m_s, cos_a,
+                                              top.roughness_regime)
+        tf = transmission_roughness_factor(f, top.roughness_m, above.sound_speed_m_s, cos_a,
+                                           below.sound_speed_m_s, cos_b, top.roughness_regime)
+        t1, t1p = t1 * tf, t1p * tf
+    if not top.has_transition:
+        return r1, t1 * np.ones(f.size), t1p * np.ones(f.size), 0.0
+    rt, tt, ttp = transition_coefficients(f, thickness_m=top.transition_m, density_top_kg_m3=rho_top,
+                                          density_bottom_kg_m3=below.density_kg_m3,
+                                          sound_speed_m_s=below.sound_speed_m_s,
+                                          attenuation=below.attenuation, cos_theta=cos_b)
+    # base of the bed: same density and speed on both sides, so r2 = 0 and t2 = t2' = 1
+    bed_time = (2 * top.transition_m / (below.sound_speed_m_s * cos_b.real)) if cos_b.imag == 0 else 0.0
+    return r1 + t1 * t1p * rt, t1 * tt, t1p * ttp, bed_time
 
 
 def transfer_function(seabed: Seabed, freq_hz, *, incidence_deg: float = 0.0, p0: float = 1.0) -> np.ndarray:

@@ -164,6 +164,19 @@ class ForwardTrace:
         return self.echoes.spectra()[index] * self.emitted_spectrum
 
 
+def _noise_sigma(received: np.ndarray, snr_db: float | None, noise_std: float | None) -> float:
+    """Noise standard deviation (Pa) from ``snr_db`` (strongest echo's power ``A^2/2`` over the
+    noise power) or given directly; 0 without either."""
+    if snr_db is not None:
+        require(math.isfinite(snr_db), OptionError, f"snr_db must be finite, got {snr_db!r}")
+        return float(np.max(np.abs(received))) / math.sqrt(2.0 * 10 ** (snr_db / 10.0))
+    if noise_std is not None:
+        require(math.isfinite(noise_std) and noise_std >= 0, OptionError,
+                f"noise_std must be finite and >= 0, got {noise_std!r}")
+        return float(noise_std)
+    return 0.0
+
+
 def simulate_trace(seabed: Seabed, chirp: Chirp, *, sample_rate_hz: float = 48000.0, incidence_deg: float = 0.0,
                    p0: float = 1.0, record_s: float | None = None, snr_db: float | None = None,
                    noise_std: float | None = None, rng=None) -> ForwardTrace:
@@ -215,14 +228,7 @@ def simulate_trace(seabed: Seabed, chirp: Chirp, *, sample_rate_hz: float = 4800
     echoes = layer_echoes(seabed, freq, incidence_deg=incidence_deg, p0=p0)
     p_r = echoes.transfer()
     received = scipy.fft.irfft(p_r * x_spec, n)
-    sigma = 0.0
-    if snr_db is not None:
-        require(math.isfinite(snr_db), OptionError, f"snr_db must be finite, got {snr_db!r}")
-        sigma = float(np.max(np.abs(received))) / math.sqrt(2.0 * 10 ** (snr_db / 10.0))
-    elif noise_std is not None:
-        require(math.isfinite(noise_std) and noise_std >= 0, OptionError,
-                f"noise_std must be finite and >= 0, got {noise_std!r}")
-        sigma = float(noise_std)
+    sigma = _noise_sigma(received, snr_db, noise_std)
     if sigma > 0:
         received = received + np.random.default_rng(rng).normal(0.0, sigma, n)
     return ForwardTrace(float(sample_rate_hz), np.arange(n) / sample_rate_hz, received,
