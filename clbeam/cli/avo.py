@@ -12,7 +12,6 @@ attributes and inverted grain size along the track
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 from clbeam.constants import (
     SBP29_ARRAY_WIDTH_M,
@@ -22,6 +21,7 @@ from clbeam.constants import (
     SOUND_SPEED_M_S,
 )
 from clbeam.errors import OptionError, require
+from clbeam.io.paths import check_output_path
 from clbeam.seabed.avo.stack import DEFAULT_PINGS_PER_PATCH
 
 NAME = "avo"
@@ -49,8 +49,7 @@ def run(args) -> int:
     require(args.pings_per_patch >= 1, OptionError,
             f"--pings-per-patch must be >= 1, got {args.pings_per_patch}")
     require(args.ping_spacing > 0, OptionError, f"--ping-spacing must be > 0 m, got {args.ping_spacing}")
-    out = Path(args.output)
-    require(out.parent.exists(), OptionError, f"output folder {str(out.parent)!r} does not exist")
+    out = check_output_path(args.output, args.images, what="AVO table")
     opts = options_from_args(args)
     resp = angular_responses(args.images, DEFAULT_INCIDENCE_DEG, opts, ping_spacing_m=args.ping_spacing)
     n = resp.port_db.shape[0]

@@ -9,13 +9,13 @@ from pathlib import Path
 from clbeam.cli.options import (
     add_grid_options,
     add_imaging_options,
-    check_output_path,
     grid_from_args,
     options_from_args,
     progress,
     remove_partial,
 )
 from clbeam.errors import OptionError, require
+from clbeam.io.paths import check_output_path
 
 NAME = "image"
 HELP = "image a ping file into intensity and coherence factor"

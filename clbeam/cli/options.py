@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from clbeam.constants import PEAK_THRESHOLD
-from clbeam.errors import ClbeamError, OptionError, require
+from clbeam.errors import ClbeamError
 
 
 def progress(iterable, *, total=None, desc="", quiet=False, unit="ping"):
@@ -120,18 +120,6 @@ def grid_from_args(args, max_range_default: float):
     return PolarGrid.regular(range_res_m=args.range_res, angle_res_deg=args.angle_res,
                              max_range_m=args.max_range if args.max_range is not None else max_range_default,
                              min_range_m=args.min_range, angles_deg=tuple(args.angles))
-
-
-def check_output_path(output, *inputs) -> None:
-    """Refuse an output that is one of the inputs or an existing folder
-    (other than a Zarr store), before anything is written or removed."""
-    out = Path(output)
-    for inp in inputs:
-        require(not (out.exists() and Path(inp).exists() and out.resolve() == Path(inp).resolve()), OptionError,
-                f"output {out} is the input file; choose another name")
-    require(not (out.is_dir() and out.suffix != ".zarr"), OptionError,
-            f"output {out} is an existing folder; give a file name")
-    require(out.parent.exists() or str(out.parent) == "", OptionError, f"output folder {out.parent} does not exist")
 
 
 def remove_partial(path: Path) -> None:

@@ -20,9 +20,9 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     """Find the peaks of every ping of the image file; write them as CSV."""
-    from clbeam.cli.options import check_output_path
     from clbeam.imaging.peaks import peaks_from_images
     from clbeam.io.images import open_images
+    from clbeam.io.paths import check_output_path
     from clbeam.io.peaks import write_peaks_csv
 
     check_output_path(args.output, args.images)

@@ -7,12 +7,12 @@ import numpy as np
 from clbeam.cli.options import (
     add_grid_options,
     add_imaging_options,
-    check_output_path,
     grid_from_args,
     options_from_args,
     progress,
 )
 from clbeam.errors import OptionError, require
+from clbeam.io.paths import check_output_path
 
 NAME = "sediment-speed"
 HELP = "sediment interval velocity: the speed that makes a sub-bottom reflector most coherent (scan of candidate speeds)"

@@ -21,7 +21,7 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     """Simulate and write the ping file; prints one summary line."""
-    from clbeam.cli.options import check_output_path
+    from clbeam.io.paths import check_output_path
     from clbeam.io.pingwrite import write_ping_file
     from clbeam.sim.simulator import load_scene, simulate
 

@@ -21,6 +21,7 @@ import numpy as np
 from clbeam import __version__
 from clbeam.errors import OptionError, require
 from clbeam.imaging.vertical_beam import TraceAxis, VerticalBeam, pool_max
+from clbeam.io.paths import check_output_path
 from clbeam.io.pingfile import PingFile
 from clbeam.io.segy import COORDINATE_SCALAR, SegyProfileWriter, segyio_module
 from clbeam.model.geodesy import along_track_m
@@ -139,13 +140,6 @@ class ProfileResult:
     seconds: float
 
 
-def _check_output(path: Path, what: str) -> None:
-    """A one-line :class:`OptionError` unless ``path`` can be created: not a folder, in one that exists."""
-    require(not path.is_dir(), OptionError, f"cannot write {what} {path}: it is a folder")
-    parent = path.parent if str(path.parent) else Path(".")
-    require(parent.is_dir(), OptionError, f"cannot write {what} {path}: folder {parent} does not exist")
-
-
 def _header_lines(source: Path, pings: PingFile, axis: TraceAxis, *, interp: str, analytic: bool) -> list[str]:
     """The lines of the SEG-Y textual header: what the traces are and where each field is."""
     n = pings.n_pings
@@ -186,9 +180,9 @@ def _output_paths(segy_path, png_path, plot: bool) -> tuple[Path, Path | None]:
     png = (Path(png_path) if png_path is not None else segy.with_suffix(".png")) if plot else None
     require(png is None or png.resolve() != segy.resolve(), OptionError,
             f"the figure and the SEG-Y file are both {segy}; give another --png")
-    _check_output(segy, "SEG-Y file")
+    check_output_path(segy, what="SEG-Y file", zarr_ok=False)
     if png is not None:
-        _check_output(png, "figure")
+        check_output_path(png, what="figure", zarr_ok=False)
     return segy, png
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from clbeam.errors import OptionError, require
+from clbeam.io.paths import check_output_path
 from clbeam.seabed.avo.attributes import (
     AngularAttributes,
     angular_attributes,
@@ -128,8 +129,7 @@ def write_csv(path, records: list[PatchRecord]) -> Path:
     -------
     pathlib.Path
     """
-    path = Path(path)
-    require(path.parent.exists(), OptionError, f"output folder {str(path.parent)!r} does not exist")
+    path = check_output_path(path, what="AVO table")
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(COLUMNS)
