@@ -1,6 +1,6 @@
 """Survey throughput (pytest-benchmark): pings per second of a simulated line.
 
-What is timed: :func:`clbeam.survey.run.run_survey` on 24 pings of the
+What is timed: :func:`clbeam.survey.run_survey` on 24 pings of the
 simulator's ``line1`` (64 channels, 40 534 samples: ranges to 760 m) in
 three NetCDF files of 8 pings, imaged on the paper's grid (0.2 m x 0.1
 degree, 0-700 m, ±80 degrees: 1601 x 3501 cells) with the seabed band
@@ -33,7 +33,7 @@ from clbeam.imaging.imager import ImagingOptions
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
 from clbeam.sim.simulator import load_scene, simulate
-from clbeam.survey.run import SurveyOptions, open_survey, run_survey
+from clbeam.survey import SurveyOptions, open_survey, run_survey
 
 PINGS, PER_FILE = 24, 8
 GRID = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=700.0, angles_deg=(-80.0, 80.0))

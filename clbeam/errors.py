@@ -31,6 +31,10 @@ class OptionError(ClbeamError):
     """An option has a value outside what it accepts."""
 
 
+class SurveyError(ClbeamError):
+    """A survey cannot start or continue (output in use, parameters differ, no input)."""
+
+
 def require(condition: bool, error: type[ClbeamError], message: str) -> None:
     """Raise ``error(message)`` unless ``condition`` holds."""
     if not condition:

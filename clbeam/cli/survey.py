@@ -52,7 +52,7 @@ def add_arguments(p) -> None:
 
 def options_from_survey_args(args, scan):
     """:class:`SurveyOptions` from parsed ``clbeam survey`` arguments."""
-    from clbeam.survey.run import AssociationOptions, SurveyOptions
+    from clbeam.survey import AssociationOptions, SurveyOptions
 
     return SurveyOptions(
         grid=grid_from_args(args, scan.max_range_m), imaging=options_from_args(args), backend=args.backend,
@@ -98,7 +98,7 @@ def run(args) -> int:
     input was skipped (listed in the summary)."""
     require_extra("dask", "survey", "survey")
     require_extra("pyproj", "survey", "survey")
-    from clbeam.survey.run import SurveyError, run_survey, scan_inputs
+    from clbeam.survey import SurveyError, run_survey, scan_inputs
 
     scan = scan_inputs(args.inputs, stop_on_error=args.stop_on_error)
     require(bool(scan.files), SurveyError,

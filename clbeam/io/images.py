@@ -166,7 +166,8 @@ def open_images(path) -> xr.Dataset:
     fmt = ds.attrs.get(FORMAT_ATTRIBUTE)
     require(fmt == IMAGE_FORMAT, ClbeamError, f"{name}: not a clbeam image file (global attribute "
             f"{FORMAT_ATTRIBUTE} is {fmt!r}, expected '{IMAGE_FORMAT}')")
-    require("cf" in ds.variables, ClbeamError, f"{name}: missing variable 'cf' (image with --outputs including cf needed)")
+    require("cf" in ds.variables, ClbeamError, f"{name}: missing variable 'cf' (image with --outputs including cf "
+            "needed; a survey store holds images only when written with clbeam survey --images)")
     for v in IMAGE_COORDS:
         require(v in ds.coords, ClbeamError, f"{name}: missing coordinate '{v}'")
     return ds

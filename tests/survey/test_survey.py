@@ -1,4 +1,4 @@
-"""Whole surveys (clbeam.survey.run): resume after kill -9, Dask equals one
+"""Whole surveys (clbeam.survey): resume after kill -9, Dask equals one
 process, georeferencing against hand-computed positions, association,
 bad inputs, parameter locking.
 
@@ -26,16 +26,16 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from clbeam import cli
+from clbeam import cli, survey
 from clbeam.constants import KNOT_M_S
 from clbeam.errors import ClbeamError
+from clbeam.io import survey_products
 from clbeam.io.peaks import read_peaks_csv
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
+from clbeam.io.survey_store import LEDGER_DIR
 from clbeam.sim.simulator import load_scene, simulate
-from clbeam.survey import run as survey
-from clbeam.survey.run import (
-    LEDGER_DIR,
+from clbeam.survey import (
     AssociationOptions,
     SurveyError,
     associate,
@@ -147,6 +147,43 @@ def test_survey_peaks_equal_the_imagers_peaks_of_each_ping(line, reference):
         assert product_paths(reference)[name].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_peaks_of_the_survey_store_equal_those_of_an_image_file_of_the_same_pings(line, reference, tmp_path):
+    """``clbeam peaks`` reads a survey written with --images as an image file.  With --mlh (which
+    needs each ping's source, sound speed and the sonar's band and array width) its rows for the
+    pings of the first input equal, digit for digit, those of ``clbeam image`` + ``clbeam peaks`` on
+    that file.  Without --mlh they are the survey's own peaks, to the 10 significant digits of
+    ``clbeam peaks``' CSV (a relative difference of at most 5e-10)."""
+    from clbeam.io.images import open_images
+
+    _, paths = line
+    img = tmp_path / "first.nc"
+    assert survey_main(["image", str(paths[0]), "-o", str(img), *GRID, "-q"]) == 0
+    store_mlh, file_mlh, store_plain = tmp_path / "store_mlh.csv", tmp_path / "file_mlh.csv", tmp_path / "store.csv"
+    assert survey_main(["peaks", str(reference), "-o", str(store_mlh), "--mlh", "-q"]) == 0
+    assert survey_main(["peaks", str(img), "-o", str(file_mlh), "--mlh", "-q"]) == 0
+    expected = read_peaks_csv(file_mlh)
+    got = [r for r in read_peaks_csv(store_mlh) if r["ping"] < PER_FILE]
+    assert len(got) == len(expected) > 0 and "n_merged" in got[0]
+    assert got == expected
+    # the per-ping values and the sonar attributes are those of the image file
+    root, ds = open_survey(reference), open_images(img)
+    try:
+        for v in ("centre_y", "centre_z", "source_y", "source_z", "sound_speed", "latitude", "longitude", "heading"):
+            assert np.isfinite(ds[v].values).all()
+            np.testing.assert_array_equal(root[v].values[:PER_FILE], ds[v].values)
+        for a in ("pulse_band_hz", "array_width_m"):
+            np.testing.assert_array_equal(root.attrs[a], ds.attrs[a])
+    finally:
+        ds.close()
+    assert survey_main(["peaks", str(reference), "-o", str(store_plain), "-q"]) == 0
+    plain, own = read_peaks_csv(store_plain), read_peaks_csv(product_paths(reference)["peaks_csv"])
+    assert len(plain) == len(own) > 0
+    for a, b in zip(plain, own):
+        assert a["ping"] == b["ping"]
+        for col in ("range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db"):
+            assert a[col] == pytest.approx(b[col], rel=5e-10, abs=0), col
+
+
 # ---------------------------------------------------------------------------
 # Resume after kill -9
 # ---------------------------------------------------------------------------
@@ -214,7 +251,7 @@ def _survey_options():
 def test_products_streamed_in_small_blocks_equal_the_products_in_one_block(reference, tmp_path, monkeypatch):
     out = tmp_path / "again.zarr"
     shutil.copytree(reference, out)
-    monkeypatch.setattr(survey, "PEAK_BLOCK_ROWS", 7)
+    monkeypatch.setattr(survey_products, "PEAK_BLOCK_ROWS", 7)
     prod = finalize_survey(out, _survey_options())
     assert prod.n_peaks > 7 * 10
     assert_same_survey(out, reference)

@@ -1,0 +1,226 @@
+"""The survey's peak and object tables: Zarr groups, CSV and GeoJSON.
+
+:class:`PeakTableWriter` streams the georeferenced peaks of a survey to the
+store's group ``peaks``, to ``X.peaks.csv`` and to ``X.peaks.geojson``;
+:func:`write_object_tables` writes the associated objects to the group
+``objects``, ``X.objects.csv`` and ``X.objects.geojson``.  Text products are
+written under temporary names and renamed, so a reader sees the old file or
+the new one, never a part.  Floats are written with full round-trip
+precision; an unknown value is an empty CSV cell and a GeoJSON ``null``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+import math
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from clbeam.io.survey_store import temporary_path, write_atomic
+
+PEAK_BLOCK_ROWS = 65536
+"""Peak rows buffered before they are appended to the Zarr group ``peaks``."""
+
+PEAK_TABLE = {
+    # name: (dtype, long name, units)
+    "ping": (np.int64, "survey ping number (through the readable inputs in order)", "1"),
+    "range_m": (np.float64, "range from the grid centre", "m"),
+    "angle_deg": (np.float64, "angle from nadir, positive to starboard", "degree"),
+    "y_m": (np.float64, "cross-track offset, positive to starboard", "m"),
+    "z_m": (np.float64, "depth below the array reference point", "m"),
+    "cf": (np.float64, "smoothed coherence factor at the peak", "1"),
+    "intensity_db": (np.float64, "intensity |S|^2 at the peak", "dB re input units squared"),
+    "file_index": (np.int32, "index of the input file (attribute input_files)", "1"),
+    "file_ping": (np.int32, "ping index within the input file", "1"),
+    "time_s": (np.float64, "ping time, seconds since 1970-01-01 UTC", "s"),
+    "ping_latitude_deg": (np.float64, "latitude of the ping", "degree_north"),
+    "ping_longitude_deg": (np.float64, "longitude of the ping", "degree_east"),
+    "heading_deg": (np.float64, "heading of the ping (course over ground where the file has none)", "degree"),
+    "peak_latitude_deg": (np.float64, "latitude of the peak", "degree_north"),
+    "peak_longitude_deg": (np.float64, "longitude of the peak", "degree_east"),
+    "easting_m": (np.float64, "UTM easting of the peak (zone: attribute utm_epsg)", "m"),
+    "northing_m": (np.float64, "UTM northing of the peak (zone: attribute utm_epsg)", "m"),
+    "along_track_m": (np.float64, "along-track distance from ping time x ship speed (no navigation)", "m"),
+    "object": (np.int64, "associated object (-1: none, or CF at or below the map threshold)", "1"),
+}
+"""Columns of the group ``peaks``: dtype, long name, units."""
+NAV_COLUMNS = ("ping_latitude_deg", "ping_longitude_deg", "heading_deg", "peak_latitude_deg",
+               "peak_longitude_deg", "easting_m", "northing_m")
+"""Peak columns that need navigation."""
+OBJECT_COLUMNS = ("object", "n_pings", "n_detections", "first_ping", "last_ping", "length_m", "mean_cf", "max_cf",
+                  "mean_y_m", "mean_z_m")
+"""Columns of every object row (the first five are integers)."""
+
+
+def csv_cell(v) -> str:
+    """A number as a CSV cell: integers as such, floats round-trip, NaN empty."""
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    v = float(v)
+    return "" if math.isnan(v) else repr(v)
+
+
+def json_number(v):
+    """A number for JSON: ``int``, ``float``, or ``None`` for NaN and infinities."""
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+class PeakTableWriter:
+    """Streams peak rows to the group ``peaks`` of a store, a CSV and a GeoJSON.
+
+    Parameters
+    ----------
+    output : pathlib.Path
+        The store.
+    files : dict
+        ``peaks_csv`` and ``peaks_geojson`` paths (:func:`clbeam.io.survey_store.product_paths`).
+    csv_columns : list of str
+        Columns of the CSV and properties of the GeoJSON points, in order.
+    geojson : bool
+        Write the GeoJSON (peaks with a position become WGS84 points).
+    attrs : dict
+        Attributes of the group ``peaks``.
+
+    Notes
+    -----
+    Call :meth:`add` for each block of rows, then :meth:`close` (renames the
+    files into place) or, on an error, :meth:`abort`.
+    """
+
+    def __init__(self, output: Path, files: dict, csv_columns: list, geojson: bool, attrs: dict):
+        self.output, self.attrs = output, attrs
+        self.csv_columns = csv_columns
+        self.tmp = {k: temporary_path(p) for k, p in files.items()}
+        self.files = files
+        self.csv_fh = open(self.tmp["peaks_csv"], "w", newline="")
+        self.csv = csv.writer(self.csv_fh)
+        self.csv.writerow(csv_columns)
+        self.geo_fh = None
+        if geojson:
+            self.geo_fh = open(self.tmp["peaks_geojson"], "w")
+            self.geo_fh.write('{"type": "FeatureCollection", "name": "clbeam coherence peaks", "features": [\n')
+            self.first_feature = True
+        self.buffer = {k: [] for k in PEAK_TABLE}
+        self.n_buffered = 0
+        self.n_written = 0
+        self.zarr_started = False
+
+    def add(self, cols: dict) -> None:
+        """Append rows: ``cols`` holds an equal-length array for every :data:`PEAK_TABLE` column."""
+        n = len(cols["ping"])
+        if n == 0:
+            return
+        for row in zip(*(cols[c] for c in self.csv_columns)):
+            self.csv.writerow([csv_cell(v) for v in row])
+        if self.geo_fh is not None:
+            self._add_features(cols, n)
+        for k in PEAK_TABLE:
+            self.buffer[k].append(np.asarray(cols[k]))
+        self.n_buffered += n
+        if self.n_buffered >= PEAK_BLOCK_ROWS:
+            self._flush()
+
+    def _add_features(self, cols: dict, n: int) -> None:
+        for k in range(n):
+            lat, lon = cols["peak_latitude_deg"][k], cols["peak_longitude_deg"][k]
+            if not (math.isfinite(lat) and math.isfinite(lon)):
+                continue
+            feat = {"type": "Feature", "geometry": {"type": "Point", "coordinates": [float(lon), float(lat)]},
+                    "properties": {c: json_number(cols[c][k]) for c in self.csv_columns}}
+            self.geo_fh.write(("" if self.first_feature else ",\n") + json.dumps(feat))
+            self.first_feature = False
+
+    def _flush(self, force: bool = False) -> None:
+        import xarray as xr
+
+        if self.n_buffered == 0 and not (force and not self.zarr_started):
+            return
+        data = {}
+        for k, (dtype, long_name, units) in PEAK_TABLE.items():
+            arr = np.concatenate(self.buffer[k]).astype(dtype) if self.buffer[k] else np.zeros(0, dtype=dtype)
+            data[k] = (("peak",), arr, {"long_name": long_name, "units": units})
+        # every write gives the attributes: xarray's append mode replaces them with the dataset's
+        ds = xr.Dataset(data, attrs=self.attrs)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if not self.zarr_started:
+                ds.to_zarr(self.output, group="peaks", mode="w", consolidated=False)
+                self.zarr_started = True
+            else:
+                ds.to_zarr(self.output, group="peaks", append_dim="peak", consolidated=False)
+        self.n_written += self.n_buffered
+        self.buffer = {k: [] for k in PEAK_TABLE}
+        self.n_buffered = 0
+
+    def close(self) -> None:
+        """Write what is buffered and rename the files into place."""
+        self._flush(force=True)
+        self.csv_fh.close()
+        os.replace(self.tmp["peaks_csv"], self.files["peaks_csv"])
+        if self.geo_fh is not None:
+            self.geo_fh.write("\n]}\n")
+            self.geo_fh.close()
+            os.replace(self.tmp["peaks_geojson"], self.files["peaks_geojson"])
+
+    def abort(self) -> None:
+        """Close and remove the temporary files (the products in place stay as they were)."""
+        for fh in (self.csv_fh, self.geo_fh):
+            if fh is not None and not fh.closed:
+                fh.close()
+        for p in self.tmp.values():
+            with contextlib.suppress(OSError):
+                p.unlink()
+
+
+def write_object_tables(output: Path, files: dict, rows: list, columns: list, lines: list | None) -> None:
+    """Write the objects: group ``objects``, ``objects_csv`` and ``objects_geojson``.
+
+    Parameters
+    ----------
+    output : pathlib.Path
+        The store.
+    files : dict
+        ``objects_csv`` and ``objects_geojson`` paths.
+    rows : list of dict
+        One row per object, with every name of ``columns``.
+    columns : list of str
+        :data:`OBJECT_COLUMNS` first (integers), then float columns.
+    lines : list or None
+        Per object, the ``[longitude, latitude]`` (degree) of its path: a
+        GeoJSON LineString (a Point for one position).  ``None``: no
+        navigation, and an existing ``objects_geojson`` is removed.
+    """
+    import xarray as xr
+
+    tmp = temporary_path(files["objects_csv"])
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(columns)
+        for r in rows:
+            w.writerow([csv_cell(r[c]) for c in columns])
+    os.replace(tmp, files["objects_csv"])
+    if lines is not None:
+        feats = []
+        for coords, r in zip(lines, rows):
+            geom = {"type": "LineString", "coordinates": coords} if len(coords) > 1 else \
+                {"type": "Point", "coordinates": coords[0]}
+            feats.append({"type": "Feature", "geometry": geom, "properties": {c: json_number(r[c]) for c in columns}})
+        write_atomic(files["objects_geojson"], json.dumps(
+            {"type": "FeatureCollection", "name": "clbeam associated objects", "features": feats}).encode())
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            files["objects_geojson"].unlink()
+    integer = set(OBJECT_COLUMNS[:5])
+    data = {c: (("object",), np.array([r[c] for r in rows], dtype=np.int64 if c in integer else np.float64))
+            for c in columns}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        xr.Dataset(data).to_zarr(output, group="objects", mode="w", consolidated=False)

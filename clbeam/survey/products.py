@@ -1,0 +1,322 @@
+"""The survey products, rebuilt from the ledger at the end of every run.
+
+:func:`finalize_survey` reads the ledger twice, one ping at a time.  The
+first pass gathers the per-ping values (navigation, grid centre, source,
+sound speed) and the detections above the map threshold, the only
+survey-wide arrays kept (about 200 bytes per detection and 4 per peak);
+the detections are associated into objects
+(:func:`clbeam.survey.association.associate`).  The second pass
+georeferences every peak and streams it to the group ``peaks``, the CSV and
+the GeoJSON (:class:`clbeam.io.survey_products.PeakTableWriter`).  Then the
+objects, the store's per-ping variables and attributes, and the figures.
+Every product holds each committed ping exactly once.
+"""
+
+from __future__ import annotations
+
+import array
+import dataclasses
+import json
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from clbeam.io.peaks import PEAK_COLUMNS
+from clbeam.io.survey_products import NAV_COLUMNS, OBJECT_COLUMNS, PeakTableWriter, write_object_tables
+from clbeam.io.survey_store import (
+    iter_ledger_records,
+    ledger_names,
+    product_paths,
+    store_ping_count,
+    update_store,
+)
+from clbeam.survey.association import associate, describe_objects
+from clbeam.survey.georef import SurveyNavigation
+from clbeam.survey.inputs import one_line
+from clbeam.survey.options import SurveyOptions
+from clbeam.survey.plots import plot_persistence, plot_survey_map
+
+log = logging.getLogger(__name__)
+
+_EPOCH = np.datetime64(0, "ns")
+
+#: per-ping variables of the store filled from the ledger records: (record key, fill value, dtype)
+_RECORD_VARIABLES = {
+    "centre_y": ("centre_y_m", np.nan, np.float64), "centre_z": ("centre_z_m", np.nan, np.float64),
+    "source_y": ("source_y_m", np.nan, np.float64), "source_z": ("source_z_m", np.nan, np.float64),
+    "sound_speed": ("sound_speed_m_s", np.nan, np.float64),
+    "file_index": ("file_index", -1, np.int32), "file_ping": ("file_ping", -1, np.int32),
+}
+
+
+@dataclass
+class SurveyProducts:
+    """What :func:`finalize_survey` wrote and found.
+
+    Attributes
+    ----------
+    n_imaged : int
+        Pings in the ledger.
+    n_peaks : int
+        Coherence peaks of those pings.
+    n_detections : int
+        Peaks above the map threshold.
+    objects : list of dict
+        :func:`clbeam.survey.association.describe_objects`.
+    navigation : bool
+        Some ping has a position (peaks carry latitude and longitude; GeoJSON written).
+    utm_epsg : int or None
+        UTM zone of the eastings and northings.
+    files : dict
+        :func:`clbeam.io.survey_store.product_paths`.
+    """
+
+    n_imaged: int
+    n_peaks: int
+    n_detections: int
+    objects: list
+    navigation: bool
+    utm_epsg: int | None
+    files: dict
+
+
+@dataclass
+class _Detections:
+    """Peaks above the map threshold, in ledger order, with their association."""
+
+    ping: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    cf: np.ndarray
+    row: np.ndarray
+    cols: dict = None
+    pos: np.ndarray = None
+    labels: np.ndarray = None
+    objects: list = None
+
+
+@dataclass
+class _FirstPass:
+    """What the first reading of the ledger keeps."""
+
+    nav: SurveyNavigation
+    per_ping: dict
+    detections: _Detections
+    n_rows: int
+    sonar: dict
+
+
+def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyProducts:
+    """Build the survey products from the ledger of ``output``.
+
+    Reads the ledger twice, one ping at a time: first the navigation and the
+    detections above the map threshold (the only survey-wide arrays kept:
+    about 200 bytes per detection and 4 per peak), which are associated
+    into objects; then every peak, georeferenced and written to the Zarr
+    group ``peaks``, the CSV and the GeoJSON.  Each text product is written
+    under a temporary name and renamed; the store's per-ping variables
+    (navigation, time, grid centre, source, sound speed, ``imaged``,
+    ``n_peaks``) and attributes (with the sonar's ``pulse_band_hz`` and
+    ``array_width_m``, as in an image file) are updated.
+
+    Parameters
+    ----------
+    output : path-like
+        The survey store.
+    options : SurveyOptions
+        The run's options (map threshold and association rule, speed, grid).
+    failures : sequence of Failure
+        Inputs and pings not imaged (store attribute ``failures``).
+
+    Returns
+    -------
+    SurveyProducts
+    """
+    output = Path(output)
+    assoc = options.association
+    names = ledger_names(output)  # both passes read these, whatever a late task may still commit
+    first = _read_ledger(output, names, store_ping_count(output), options)
+    nav, det = first.nav, first.detections
+    nav.finish(first.per_ping["imaged"])
+    _associate(det, nav, assoc)
+    row_object = np.full(first.n_rows, -1, dtype=np.int32)
+    row_object[det.row] = det.labels
+    files = product_paths(output)
+    _write_peaks(output, names, files, options, nav, row_object)
+    rows, columns, lines = object_rows(det.objects, nav, det.ping, det.labels, det.cols)
+    write_object_tables(output, files, rows, columns, lines)
+    n_imaged = int(first.per_ping["imaged"].sum())
+    update_store(output, {"latitude": nav.lat, "longitude": nav.lon, "heading": nav.heading, "time": nav.time_s,
+                          **first.per_ping}, _store_attrs(first, options, failures))
+    try:
+        plot_survey_map(files["map_png"], nav=nav, det_ping=det.ping, det_cf=det.cf, det_pos=det.pos,
+                        objects=det.objects, threshold=assoc.threshold, grid=options.grid)
+        plot_persistence(files["persistence_png"], det.ping, det.y, det.cf, assoc.threshold)
+    except Exception as exc:  # a figure must not lose the tables written above
+        log.warning("survey figures not written: %s", one_line(exc))
+    return SurveyProducts(n_imaged=n_imaged, n_peaks=first.n_rows, n_detections=int(det.ping.size),
+                          objects=det.objects, navigation=bool(nav.has_nav.any()), utm_epsg=nav.epsg, files=files)
+
+
+def _nan(v) -> float:
+    return np.nan if v is None else float(v)
+
+
+def _associate(det: _Detections, nav: SurveyNavigation, assoc) -> None:
+    """Georeference the detections and associate them into objects (fills ``det``)."""
+    det.cols = nav.peak_columns(det.ping, det.y)
+    det.pos, sb = nav.frame(det.ping, det.y, det.cols)
+    det.labels = associate(det.ping, det.pos, sb, det.z, assoc)
+    det.objects = describe_objects(det.labels, det.ping, det.pos, det.cf, det.y, det.z)
+
+
+def _store_attrs(first: _FirstPass, options: SurveyOptions, failures) -> dict:
+    """Root attributes of the store after the products: completeness, UTM zone, options, failures, sonar."""
+    n = first.nav.lat.size
+    n_imaged = int(first.per_ping["imaged"].sum())
+    return {
+        "survey_complete": bool(n_imaged == n and not failures),
+        "pings_imaged": n_imaged, "pings_total": n,
+        "utm_epsg": first.nav.epsg if first.nav.epsg is not None else -1,
+        "association": json.dumps(dataclasses.asdict(options.association)),
+        "speed_m_s": options.speed_m_s if options.speed_m_s is not None else -1.0,
+        "failures": json.dumps([str(f) for f in failures]),
+        **first.sonar,
+    }
+
+
+def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _FirstPass:
+    """First pass: per-ping values, navigation, the sonar of the first ping, and the detections."""
+    threshold = options.association.threshold
+    nav = SurveyNavigation(n, options.speed_m_s)
+    per_ping = {"imaged": np.zeros(n, dtype=bool), "n_peaks": np.full(n, -1, dtype=np.int32)}
+    per_ping.update({k: np.full(n, fill, dtype=dtype) for k, (_, fill, dtype) in _RECORD_VARIABLES.items()})
+    det_ping, det_row = array.array("q"), array.array("q")
+    det_y, det_z, det_cf = array.array("d"), array.array("d"), array.array("d")
+    sonar = {}
+    row = 0
+    for rec in iter_ledger_records(output, names):
+        g = rec["ping"]
+        per_ping["imaged"][g] = True
+        per_ping["n_peaks"][g] = len(rec["peaks"])
+        for k, (key, fill, _) in _RECORD_VARIABLES.items():
+            v = rec.get(key)  # None: unknown, or a record written before the key existed
+            per_ping[k][g] = fill if v is None else v
+        nav.lat[g], nav.lon[g] = _nan(rec["latitude_deg"]), _nan(rec["longitude_deg"])
+        nav.heading_file[g] = _nan(rec["heading_deg"])
+        if rec["time"] is not None:
+            nav.time_s[g] = (np.datetime64(rec["time"], "ns") - _EPOCH) / np.timedelta64(1, "s")
+        if not sonar and rec.get("band_hz") is not None:
+            # as an image file: the sonar of the first ping written (the lowest survey ping)
+            sonar = {"pulse_band_hz": [float(b) for b in rec["band_hz"]],
+                     "array_width_m": float(rec["array_width_m"])}
+        for k, pk in enumerate(rec["peaks"]):
+            if pk["cf"] > threshold:
+                det_ping.append(g)
+                det_y.append(pk["y_m"])
+                det_z.append(pk["z_m"])
+                det_cf.append(pk["cf"])
+                det_row.append(row + k)
+        row += len(rec["peaks"])
+    dets = _Detections(np.asarray(det_ping, dtype=np.int64), *(np.asarray(a, dtype=np.float64)
+                                                               for a in (det_y, det_z, det_cf)),
+                       row=np.asarray(det_row, dtype=np.int64))
+    return _FirstPass(nav, per_ping, dets, row, sonar)
+
+
+def peak_csv_columns(nav: SurveyNavigation) -> list:
+    """Columns of the peaks CSV: :data:`clbeam.io.peaks.PEAK_COLUMNS`, the input
+    file and ping time, the navigated or the along-track columns (both when
+    some pings have navigation and some not), and ``object``."""
+    columns = list(PEAK_COLUMNS) + ["file_index", "file_ping", "time_s"]
+    if nav.has_nav.any():
+        columns += list(NAV_COLUMNS)
+    if (~nav.has_nav).any():
+        columns.append("along_track_m")
+    columns.append("object")
+    return columns
+
+
+def _write_peaks(output: Path, names: list, files: dict, options: SurveyOptions, nav: SurveyNavigation,
+                 row_object: np.ndarray) -> None:
+    """Second pass: every peak, georeferenced, to the group ``peaks``, the CSV and the GeoJSON."""
+    attrs = {"utm_epsg": nav.epsg if nav.epsg is not None else -1, "peak_threshold": options.imaging.threshold,
+             "map_threshold": options.association.threshold}
+    writer = PeakTableWriter(output, {k: files[k] for k in ("peaks_csv", "peaks_geojson")}, peak_csv_columns(nav),
+                             bool(nav.has_nav.any()), attrs)
+    try:
+        row = 0
+        for rec in iter_ledger_records(output, names):
+            k = len(rec["peaks"])
+            if k:
+                writer.add(_peak_columns(rec, nav, row_object[row:row + k]))
+            row += k
+        writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+
+
+def _peak_columns(rec: dict, nav: SurveyNavigation, objects: np.ndarray) -> dict:
+    """The peak-table columns of one ledger record."""
+    pk = rec["peaks"]
+    k = len(pk)
+    g = rec["ping"]
+    cols = {c: np.array([r[c] for r in pk], dtype=np.float64) for c in PEAK_COLUMNS if c != "ping"}
+    pings = np.full(k, g, dtype=np.int64)
+    cols["ping"] = pings
+    cols["file_index"] = np.full(k, rec["file_index"], dtype=np.int32)
+    cols["file_ping"] = np.full(k, rec["file_ping"], dtype=np.int32)
+    cols["time_s"] = np.full(k, nav.time_s[g])
+    cols.update(nav.peak_columns(pings, cols["y_m"]))
+    cols["object"] = objects.astype(np.int64)
+    return cols
+
+
+def object_rows(objects: list, nav: SurveyNavigation, det_ping, labels, det_cols) -> tuple:
+    """The rows of the object tables, their columns, and the objects' paths.
+
+    Parameters
+    ----------
+    objects : list of dict
+        :func:`clbeam.survey.association.describe_objects`.
+    nav : SurveyNavigation
+    det_ping, labels : numpy.ndarray
+        ``(k,)`` survey ping and object of each detection.
+    det_cols : dict
+        The detections' :meth:`SurveyNavigation.peak_columns`.
+
+    Returns
+    -------
+    (list of dict, list of str, list or None)
+        Rows; columns (:data:`clbeam.io.survey_products.OBJECT_COLUMNS`,
+        then start and end positions: WGS84 and UTM (m) with navigation,
+        along-track distances (m) without); with navigation, per object the
+        ``[longitude, latitude]`` (degree) of its per-ping mean positions,
+        else ``None``.
+    """
+    geo = nav.all_nav
+    extra = ("start_latitude_deg", "start_longitude_deg", "end_latitude_deg", "end_longitude_deg",
+             "start_easting_m", "start_northing_m", "end_easting_m", "end_northing_m") if geo else \
+        ("start_along_track_m", "end_along_track_m")
+    rows, lines = [], []
+    for ob in objects:
+        r = {k: ob[k] for k in OBJECT_COLUMNS}
+        m = labels == ob["object"]
+        if geo:
+            for tag, q in (("start", ob["first_ping"]), ("end", ob["last_ping"])):
+                sel = m & (det_ping == q)
+                r[f"{tag}_latitude_deg"] = float(np.mean(det_cols["peak_latitude_deg"][sel]))
+                r[f"{tag}_longitude_deg"] = float(np.mean(det_cols["peak_longitude_deg"][sel]))
+                r[f"{tag}_easting_m"] = float(np.mean(det_cols["easting_m"][sel]))
+                r[f"{tag}_northing_m"] = float(np.mean(det_cols["northing_m"][sel]))
+            lines.append([[float(np.mean(det_cols["peak_longitude_deg"][m & (det_ping == q)])),
+                           float(np.mean(det_cols["peak_latitude_deg"][m & (det_ping == q)]))]
+                          for q in np.unique(det_ping[m])])
+        else:
+            r["start_along_track_m"] = float(ob["path"][0, 0]) if nav.speed is not None else np.nan
+            r["end_along_track_m"] = float(ob["path"][-1, 0]) if nav.speed is not None else np.nan
+        rows.append(r)
+    return rows, list(OBJECT_COLUMNS) + list(extra), lines if geo else None
