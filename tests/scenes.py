@@ -11,6 +11,7 @@ import xarray as xr
 
 from clbeam.imaging.engine import BeamformInput
 from clbeam.imaging.geometry import to_earth_frame
+from clbeam.io.pingwrite import dataset_from_pings
 from clbeam.model.ping import Ping
 from clbeam.model.pulse import Pulse
 
@@ -115,22 +116,15 @@ def profile_point_ping(targets_yz_m, profile, *, n_channels=64, record_s=1.5, t0
 
 
 def ping_dataset(ping: Ping, **extra):
-    """A one-ping SPEC §7 dataset (float32 raw samples) of ``ping``, with
-    extra variables (``name=(dims, values)``); the svp when it has one."""
-    import xarray as xr
-
-    pos = ping.element_pos_m
-    vars_ = {"samples": (("ping", "channel", "sample"), ping.samples[None].astype(np.float32)),
-             "sample_rate": ping.sample_rate_hz, "t0": ("ping", [ping.t0_s]), "sound_speed": ping.sound_speed_m_s,
-             "element_x": ("channel", pos[:, 0]), "element_y": ("channel", pos[:, 1]),
-             "element_z": ("channel", pos[:, 2]), "source_y": ping.source_pos_m[1], "source_z": ping.source_pos_m[2],
-             "pulse_f0": ping.pulse.f0_hz, "pulse_f1": ping.pulse.f1_hz, "pulse_duration": ping.pulse.duration_s}
-    if ping.svp is not None:
-        vars_.update(svp_depth=("svp", ping.svp.depths_m), svp_speed=("svp", ping.svp.speeds_m_s))
-    return xr.Dataset({**vars_, **extra})
+    """A one-ping SPEC §7 dataset (float32 samples) of ``ping`` from clbeam's writer, with
+    extra variables (``name=(dims, values)``)."""
+    return dataset_from_pings([ping], samples_dtype=np.float32).assign(**extra)
 
 
 def dataset(n_pings=3, kind="raw", seed=0):
+    """Three pings of point scatterers and a minimal SPEC §7 dataset of them written by hand, the
+    way another program would (no element_x, few attributes): the reader must not depend on
+    clbeam's own writer."""
     pings = [point_ping(polar_point(40 + 5 * i, 10 * i), kind=kind, record_s=0.08, roll_deg=i) for i in range(n_pings)]
     p0 = pings[0]
     samples = np.stack([p.samples for p in pings])

@@ -18,6 +18,7 @@ import numpy as np
 import xarray as xr
 
 from clbeam.errors import ClbeamError, PingFileError, require
+from clbeam.io.pingfile import open_dataset
 from clbeam.io.schema import (
     FORMAT_ATTRIBUTE,
     IMAGE_COORDS,
@@ -156,8 +157,6 @@ class ImageWriter:
 
 def open_images(path) -> xr.Dataset:
     """Open an image file written by :class:`ImageWriter` (one-line errors)."""
-    from clbeam.io.pingfile import open_dataset
-
     try:
         ds = open_dataset(path)
     except PingFileError as exc:

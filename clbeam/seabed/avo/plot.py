@@ -22,6 +22,8 @@ from clbeam.seabed.avo.attributes import (
     AngularAttributes,
     angular_attributes,
 )
+from clbeam.seabed.avo.model import backscatter_strength_db
+from clbeam.seabed.avo.sediment import sediment_from_grain_size
 
 #: Colour of the background trend line (figure 2).
 TREND_COLOR = "#d62728"
@@ -177,9 +179,6 @@ def write_figures(folder, patches, rows, *, frequency_hz=None, sound_speed_m_s: 
     sound_speed_m_s : float
         Water sound speed of the model (m/s).
     """
-    from clbeam.seabed.avo.model import backscatter_strength_db
-    from clbeam.seabed.avo.sediment import sediment_from_grain_size
-
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     paths = []

@@ -62,6 +62,7 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from clbeam.errors import ClbeamError, OptionError, require
+from clbeam.io.images import open_images
 from clbeam.model.geodesy import along_track_m
 
 DEFAULT_INCIDENCE_DEG = np.arange(0.5, 85.0, 1.0)
@@ -587,8 +588,6 @@ def angular_responses(images, incidence_deg=DEFAULT_INCIDENCE_DEG, options: Resp
         Not an image file, no ``intensity`` variable, no pings, or a ping
         whose seabed cannot be picked.
     """
-    from clbeam.io.images import open_images
-
     o = options or ResponseOptions()
     inc_bins = np.asarray(incidence_deg, dtype=np.float64)
     _bin_edges(inc_bins)

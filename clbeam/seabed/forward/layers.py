@@ -19,6 +19,9 @@ import math
 from dataclasses import dataclass, field, replace
 
 from clbeam.errors import OptionError, require
+
+# the same grain-size regressions as the AVO inversion
+from clbeam.seabed.avo import sediment as grain
 from clbeam.seabed.forward.attenuation import (
     Attenuation,
     LinearAttenuation,
@@ -218,10 +221,6 @@ def layer_from_grain_size(mz_phi: float, thickness_m: float, *, water_sound_spee
     name : str
         Label; default ``"Mz <value>"``.
     """
-    from clbeam.seabed.avo import (
-        sediment as grain,  # the same regressions as the AVO inversion
-    )
-
     rho_ratio, nu_ratio = grain.density_ratio(mz_phi), grain.sound_speed_ratio(mz_phi)
     k_p = grain.attenuation_db_per_m_khz(mz_phi)
     return Layer(thickness_m, nu_ratio * water_sound_speed_m_s, rho_ratio * water_density_kg_m3,
