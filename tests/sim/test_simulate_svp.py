@@ -23,12 +23,10 @@ import xarray as xr
 
 from clbeam.errors import OptionError
 from clbeam.model.svp import SoundSpeedProfile, holland_line1_profile
+from clbeam.sim.rays import ray_legs, seabed_ray_legs, unfold
 from clbeam.sim.simulator import (
     Simulator,
     Water,
-    _ray_legs,
-    _seabed_ray_legs,
-    _unfold,
     list_scenes,
     load_scene,
     scene_from_mapping,
@@ -68,7 +66,10 @@ def _integrals(p: float, z0: float, z1: float, sediment, seabed_z: float = SEABE
     for a, b in zip(cuts, cuts[1:]):
         # the sediment starts just below the seabed: evaluate inside the piece
         mid = 0.5 * (a + b)
-        c_piece = (lambda z, m=mid: speed(z, sediment, seabed_z) if z != seabed_z else speed(m, sediment, seabed_z))
+
+        def c_piece(z, m=mid):
+            return speed(z, sediment, seabed_z) if z != seabed_z else speed(m, sediment, seabed_z)
+
         kw = dict(epsrel=1e-12, limit=200)
         x += scipy.integrate.quad(lambda z: p * c_piece(z) / math.sqrt(1 - (p * c_piece(z)) ** 2), a, b,
                                   epsabs=1e-12, **kw)[0]
@@ -306,8 +307,8 @@ def test_sloped_seabed_legs_equal_the_flat_sediment_profile_where_flat():
     pos = np.stack([rng.uniform(-50, 50, 300), rng.uniform(-1100, 1100, 300), SEABED_Z + rng.uniform(0.01, 30, 300)],
                    axis=1)
     ends = np.array([[0.0, -1.7, -0.1], [0.0, 0.3, 0.05], [1.0, 1.7, 0.12]])
-    a = _ray_legs(sed, ends, pos)
-    b = _seabed_ray_legs(water, ends, pos, np.full(300, SEABED_Z), np.full(300, SEDIMENT))
+    a = ray_legs(sed, ends, pos)
+    b = seabed_ray_legs(water, ends, pos, np.full(300, SEABED_Z), np.full(300, SEDIMENT))
     assert np.all(np.isfinite(a["time_s"]))
     np.testing.assert_allclose(b["time_s"], a["time_s"], rtol=0, atol=1e-10)
     np.testing.assert_allclose(b["pos_dir"], a["pos_dir"], rtol=0, atol=1e-6)
@@ -341,7 +342,7 @@ def test_nadir_specular_echoes_follow_the_vertical_travel_time():
         t_multiple = eigen_ray(y, [down, (-5.0, SEABED_Z), (-5.0, SEABED_Z), up])[0]
         assert abs(sets["seabed"].times_s[0, n] - t_seabed) < 1e-9
         assert abs(sets["multiple"].times_s[0, n] - t_multiple) < 1e-9
-    unf, s_last, z_last = _unfold(holland_line1_profile(SEDIMENT), [SEABED_Z])
+    unf, s_last, z_last = unfold(holland_line1_profile(SEDIMENT), [SEABED_Z])
     assert s_last == z_last == SEABED_Z
     np.testing.assert_allclose(unf.speed([100.0, 2 * SEABED_Z - 100.0]), [speed(100.0)] * 2, rtol=1e-15)
 
@@ -396,7 +397,7 @@ def test_unreachable_scatterers_are_dropped_and_logged(caplog):
         "target": [{"kind": "point", "name": "far", "x_m": 0.0, "y_m": 1000.0, "z_m": 70.0},
                    {"kind": "point", "name": "near", "x_m": 0.0, "y_m": 100.0, "z_m": 70.0}]})
     sim = Simulator(scene)
-    with caplog.at_level(logging.INFO, logger="clbeam.sim.simulator"):
+    with caplog.at_level(logging.INFO, logger="clbeam.sim"):
         labels = [e.label for e in sim.echoes(sim.geometry(0))]
     assert labels == ["near"]
     assert any("far" in r.getMessage() and "no direct ray" in r.getMessage() for r in caplog.records)
