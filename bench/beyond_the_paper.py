@@ -37,7 +37,7 @@ from clbeam.imaging.stacking import PingStack
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
-from clbeam.sim.simulator import load_scene, simulate
+from clbeam.sim import load_scene, simulate
 
 WINDOWS = ("rect", "hann", "tukey:0.5", "chebyshev:30", "chebyshev:40")
 

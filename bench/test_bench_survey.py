@@ -32,7 +32,7 @@ import pytest
 from clbeam.imaging.imager import ImagingOptions
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
-from clbeam.sim.simulator import load_scene, simulate
+from clbeam.sim import load_scene, simulate
 from clbeam.survey import SurveyOptions, open_survey, run_survey
 
 PINGS, PER_FILE = 24, 8

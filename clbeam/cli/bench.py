@@ -32,7 +32,7 @@ def run(args) -> int:
         write_report,
     )
     from clbeam.io.pingfile import pings_from_dataset
-    from clbeam.sim.simulator import load_scene, simulate
+    from clbeam.sim import load_scene, simulate
 
     say = stage_printer(args)
     say(f"simulating one ping of '{args.scene}'")

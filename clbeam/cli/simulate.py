@@ -23,7 +23,7 @@ def run(args) -> int:
     """Simulate and write the ping file; prints one summary line."""
     from clbeam.io.paths import check_output_path
     from clbeam.io.pingwrite import write_ping_file
-    from clbeam.sim.simulator import load_scene, simulate
+    from clbeam.sim import load_scene, simulate
 
     check_output_path(args.output)
     scene = load_scene(args.scene, pings=args.pings, max_range_m=args.max_range)

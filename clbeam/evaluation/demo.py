@@ -24,6 +24,7 @@ from clbeam.io.peaks import write_peaks_csv
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
+from clbeam.sim import load_scene, simulate
 
 log = logging.getLogger(__name__)
 
@@ -107,8 +108,6 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
     progress : callable, optional
         Called with a message per stage.
     """
-    from clbeam.sim.simulator import load_scene, simulate
-
     say = progress or (lambda msg: log.info(msg))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -19,7 +19,7 @@ from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.imaging.peaks import peak_rows
 from clbeam.io.pingfile import pings_from_dataset
 from clbeam.model.grid import PolarGrid
-from clbeam.sim.simulator import load_scene, simulate
+from clbeam.sim import load_scene, simulate
 
 log = logging.getLogger(__name__)
 

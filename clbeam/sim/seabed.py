@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from clbeam.seabed.avo import backscatter_strength_db
 from clbeam.sim.geometry import PingGeometry, seabed_z
 from clbeam.sim.physics import DB_PER_NEPER
 from clbeam.sim.propagation import Propagation
@@ -53,8 +54,6 @@ class Provinces:
 
     def __init__(self, provinces: tuple[Province, ...], *, frequency_hz: float, sound_speed_water_m_s: float):
         # imported on use: scenes without provinces need not load the AVO model
-        from clbeam.seabed.avo import backscatter_strength_db
-
         self.start_m = np.array([p.from_along_track_m for p in provinces])
         self.mz = np.array([p.mz for p in provinces])
         self.strength_table_db = np.stack([

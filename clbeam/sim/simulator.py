@@ -85,6 +85,7 @@ import xarray as xr
 
 from clbeam import __version__
 from clbeam.errors import OptionError, require
+from clbeam.io.pingwrite import write_ping_file
 from clbeam.io.schema import FORMAT_ATTRIBUTE, PING_FORMAT, ping_variable
 from clbeam.model.geodesy import geodesic_direct
 from clbeam.sim.catalog import list_scenes, load_scene, scene_from_mapping
@@ -488,6 +489,4 @@ def simulate(scene, *, pings=None, seed: int = 0, progress: bool = False) -> xr.
 def write(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     """Write a simulated dataset as a ping file: NetCDF4, or Zarr for a
     ``.zarr`` path (:func:`clbeam.io.pingwrite.write_ping_file`)."""
-    from clbeam.io.pingwrite import write_ping_file
-
     return write_ping_file(ds, path)

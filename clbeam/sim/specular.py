@@ -23,6 +23,9 @@ from typing import NamedTuple
 import numpy as np
 
 from clbeam.model.svp import SoundSpeedProfile
+from clbeam.seabed.forward import Interface, Layer, PowerLawAttenuation, water_column
+from clbeam.seabed.forward import Seabed as LayeredSeabed
+from clbeam.seabed.forward import specular_echoes as forward_echoes
 from clbeam.sim.geometry import PingGeometry, Plane, seabed_z
 from clbeam.sim.physics import reflection_coefficient
 from clbeam.sim.propagation import Propagation
@@ -232,9 +235,6 @@ def forward_seabed(scene: Scene, sound_speed_water_m_s: float, water_m: float = 
         (or the sediment as the half-space).
     """
     # imported on use: scenes with impedance-contrast echoes need not load the forward model
-    from clbeam.seabed.forward import Interface, Layer, PowerLawAttenuation, water_column
-    from clbeam.seabed.forward import Seabed as LayeredSeabed
-
     sb, sub = scene.seabed, scene.subbottom
     rho_w = WATER_DENSITY_KG_M3
     k_p = sb.attenuation_db_per_m / (sb.attenuation_ref_hz / 1000.0)  # dB/m/kHz, linear law
@@ -271,8 +271,6 @@ def forward_specular_response(scene: Scene, sound_speed_water_m_s: float, f_hz) 
         seabed (row 0) and the sub-bottom (row 1)
         (:func:`clbeam.seabed.forward.specular_echoes` at normal incidence).
     """
-    from clbeam.seabed.forward import specular_echoes as forward_echoes
-
     seabed = forward_seabed(scene, sound_speed_water_m_s)
     e = forward_echoes(seabed, np.asarray(f_hz, dtype=np.float64), incidence_deg=0.0)
     return e.reflection * e.transmission * e.attenuation

@@ -8,7 +8,7 @@ from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
-from clbeam.sim.simulator import load_scene, simulate
+from clbeam.sim import load_scene, simulate
 
 
 @pytest.fixture(scope="module")

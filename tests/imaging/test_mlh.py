@@ -327,7 +327,7 @@ def test_clbeam_image_mlh_merges_every_coherence_peak_into_one_detection(tmp_pat
     from clbeam.io.images import open_images
     from clbeam.io.peaks import read_peaks_csv
     from clbeam.io.pingwrite import write_ping_file
-    from clbeam.sim.simulator import load_scene, simulate
+    from clbeam.sim import load_scene, simulate
 
     ping_file = write_ping_file(simulate(load_scene("line1", pings=1, max_range_m=520)), tmp_path / "p.nc")
     grid = ["--min-range", "420", "--max-range", "520", "--angles", "-75", "-55"]

@@ -20,7 +20,7 @@ from clbeam.io.peaks import read_peaks_csv
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
-from clbeam.sim.simulator import load_scene, simulate
+from clbeam.sim import load_scene, simulate
 
 SMALL = PolarGrid.regular(range_res_m=0.2, angle_res_deg=1.0, min_range_m=40, max_range_m=60, angles_deg=(-30, 30))
 

@@ -165,7 +165,7 @@ def test_envelope_peaks_at_a_point_below_at_its_range_whatever_the_roll_and_heav
 
 
 def test_envelope_peaks_at_the_simulated_seabed_two_way_time(tmp_path, cl_engine):
-    from clbeam.sim.simulator import load_scene, simulate
+    from clbeam.sim import load_scene, simulate
 
     ds = simulate(load_scene("line1", pings=2, max_range_m=260))
     pings = tmp_path / "line1.nc"

@@ -26,7 +26,7 @@ from clbeam.seabed.forward import (
     specular_echoes,
     water_column,
 )
-from clbeam.sim.simulator import load_scene, simulate
+from clbeam.sim import load_scene, simulate
 
 C, FS = 1500.0, 40000.0
 REPLICA = lfm_replica(f0_hz=2000.0, f1_hz=9000.0, duration_s=0.08, sample_rate_hz=FS)

@@ -34,7 +34,7 @@ from clbeam.io.peaks import read_peaks_csv
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.io.survey_store import LEDGER_DIR
-from clbeam.sim.simulator import load_scene, simulate
+from clbeam.sim import load_scene, simulate
 from clbeam.survey import (
     AssociationOptions,
     SurveyError,

@@ -39,7 +39,7 @@ def avo(argv):
 def test_two_provinces_separate_in_the_attributes_at_the_right_place(tmp_path):
     from clbeam.cli.main import main
     from clbeam.io.pingwrite import write_ping_file
-    from clbeam.sim.simulator import load_scene, simulate
+    from clbeam.sim import load_scene, simulate
 
     ds = simulate(load_scene("avo2"))
     truth_mz = np.asarray(ds["truth_province_mz"].values)
