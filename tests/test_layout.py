@@ -8,16 +8,16 @@ import ast
 import importlib
 import subprocess
 import sys
+import tomllib
 import warnings
 from pathlib import Path
 
 import grimp
 import pytest
-import tomllib
 
 ROOT = Path(__file__).parents[1]
 PACKAGE = ROOT / "clbeam"
-#: the style's limits (ARCHITECTURE.md): a longer function says why in a comment above it
+#: the project's style limits (README, Layout): a longer function says why in a comment above it
 MAX_MODULE_LINES = 800
 MAX_FUNCTION_LINES = 60
 

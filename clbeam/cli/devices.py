@@ -12,12 +12,11 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     """Print one line per OpenCL device; 1 when there is none."""
-    from clbeam.imaging.engine.opencl import device_has_fp64, list_devices
+    from clbeam.imaging.engine.opencl import NO_OPENCL, device_has_fp64, list_devices
 
     devices = list_devices()
     if not devices:
-        print("no OpenCL device found; install an OpenCL driver (Debian: apt-get install pocl-opencl-icd) "
-              "or use --backend reference")
+        print(NO_OPENCL)
         return 1
     for i, d in enumerate(devices):
         print(f"[{i}] {d.name.strip()}  platform: {d.platform.name.strip()}  "

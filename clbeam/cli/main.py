@@ -3,10 +3,10 @@
 Every subcommand is one module of this package with the same four names:
 ``NAME`` (the subcommand), ``HELP`` (one line), ``add_arguments(parser)``
 and ``run(args) -> int``; :func:`build_parser` registers each of
-:data:`COMMANDS` the same way and adds ``-q/--quiet``.  The modules import
-the library inside ``run``, so ``clbeam --help`` starts fast.  Bad input
-ends in one line on stderr and exit status 2; long work shows a progress
-bar on a terminal.
+:data:`COMMANDS` the same way and adds ``-q/--quiet``.  The optional
+packages (Dask, pyproj, segyio, numba) are imported only inside ``run``, so
+every command's ``--help`` works without them.  Bad input ends in one line
+on stderr and exit status 2; long work shows a progress bar on a terminal.
 """
 
 from __future__ import annotations

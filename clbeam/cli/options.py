@@ -100,17 +100,19 @@ def add_imaging_options(p: argparse.ArgumentParser) -> None:
                    help="ignore the file's element_gain_db / element_phase_deg (default: remove them)")
 
 
-def options_from_args(args):
-    """:class:`~clbeam.imaging.ImagingOptions` from arguments of :func:`add_imaging_options`."""
+def options_from_args(args, **overrides):
+    """:class:`~clbeam.imaging.ImagingOptions` from arguments of :func:`add_imaging_options`
+    (``overrides``: fields to set otherwise)."""
     from clbeam.imaging.imager import ImagingOptions
 
     outputs = tuple(s.strip() for s in args.outputs.split(",") if s.strip())
-    return ImagingOptions(interp=args.interp, upsample=args.upsample, outputs=outputs, threshold=args.threshold,
-                          sound_speed_m_s=args.sound_speed, precision=args.precision,
-                          seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
-                          seabed_depth_m=args.seabed_depth, apodization=args.apodization,
-                          calibrate=not args.no_calibration, mlh=args.mlh, use_svp=not args.isospeed,
-                          sediment_speed_m_s=args.sediment_speed)
+    fields = dict(interp=args.interp, upsample=args.upsample, outputs=outputs, threshold=args.threshold,
+                  sound_speed_m_s=args.sound_speed, precision=args.precision,
+                  seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
+                  seabed_depth_m=args.seabed_depth, apodization=args.apodization,
+                  calibrate=not args.no_calibration, mlh=args.mlh, use_svp=not args.isospeed,
+                  sediment_speed_m_s=args.sediment_speed)
+    return ImagingOptions(**{**fields, **overrides})
 
 
 def grid_from_args(args, max_range_default: float):

@@ -18,7 +18,8 @@ NAME = "sediment-speed"
 HELP = "sediment interval velocity: the speed that makes a sub-bottom reflector most coherent (scan of candidate speeds)"
 DESCRIPTION = ("Image one ping with each candidate sediment speed (rays refracted at a flat seabed at --seabed-depth) "
                "and report the speed whose sub-bottom reflector detections line up best in depth (docs/beyond.md). "
-               "--sediment-speed, --mlh and --seabed-band are set by the scan; --threshold defaults to 0.5 here.")
+               "The scan sets --sediment-speed, --mlh and --seabed-band itself (giving them is an error); "
+               "--threshold defaults to 0.5 here.")
 
 
 def add_arguments(p) -> None:
@@ -49,6 +50,8 @@ def run(args) -> int:
     lo, hi, step = args.speeds
     require(step > 0 and hi > lo, OptionError, f"--speeds needs MIN < MAX and STEP > 0, got {lo:g} {hi:g} {step:g}")
     require(args.seabed_depth is not None, OptionError, "give the seabed depth below the transducers: --seabed-depth M")
+    require(not args.mlh and args.sediment_speed is None and args.seabed_band is None, OptionError,
+            "sediment-speed sets --mlh, --sediment-speed and --seabed-band itself: leave them out")
     speeds = np.arange(lo, hi + 0.5 * step, step)
     if args.output:
         check_output_path(args.output, args.pings)
@@ -57,8 +60,9 @@ def run(args) -> int:
         ping = f.ping(args.ping)
         grid = grid_from_args(args, f.max_record_range_m())
     bar = progress(None, total=len(speeds), desc="sediment speed", quiet=args.quiet)
-    scan = scan_sediment_speed(ping, grid, seabed_depth_m=args.seabed_depth, speeds_m_s=speeds,
-                               options=options_from_args(args), backend=args.backend, threshold=args.threshold,
+    options = options_from_args(args, seabed_depth_m=None)
+    scan = scan_sediment_speed(ping, grid, seabed_depth_m=args.seabed_depth, speeds_m_s=speeds, options=options,
+                               backend=args.backend, device=args.device, threshold=args.threshold,
                                progress=lambda msg: bar.update(1))
     bar.close()
     if args.output:

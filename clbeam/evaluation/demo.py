@@ -17,19 +17,21 @@ from pathlib import Path
 import numpy as np
 
 from clbeam.constants import MAP_THRESHOLD, PEAK_THRESHOLD
+from clbeam.evaluation.scoring import HIT_HORIZONTAL_M
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.io.figures import plot_cross_track
 from clbeam.io.images import ImageWriter
 from clbeam.io.peaks import write_peaks_csv
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
+from clbeam.io.schema import image_variables
 from clbeam.model.grid import PolarGrid
 from clbeam.sim import load_scene, simulate
 
 log = logging.getLogger(__name__)
 
 #: a detection is a coherence peak within this horizontal distance of a pipeline (m)
-HIT_DISTANCE_M = 2.0
+HIT_DISTANCE_M = HIT_HORIZONTAL_M
 
 
 @dataclass
@@ -126,7 +128,7 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
     scores, others, rows, files = [], [], [], [ping_path]
     for key in ("compress_s", "image_s", "postprocess_s", "figures_s"):
         t[key] = 0.0
-    with PingFile(ping_path) as f, ImageWriter(out / "images.nc", grid, len(f), ["intensity", "cf", "cf_smooth"],
+    with PingFile(ping_path) as f, ImageWriter(out / "images.nc", grid, len(f), image_variables(imager.options.outputs),
                                                  {"scene": scene, "interp": interp}) as writer:
         for ping in f:
             say(f"imaging ping {ping.index + 1}/{len(f)}")

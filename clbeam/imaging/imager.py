@@ -13,6 +13,7 @@ import dataclasses
 import logging
 import os
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,7 +30,7 @@ from clbeam.imaging.apodization import (
     receive_weights,
 )
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
-from clbeam.imaging.engine.common import cell_windows, check_outputs
+from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs
 from clbeam.imaging.geometry import check_positions, to_earth_frame
 from clbeam.imaging.peaks import PingContext, peak_rows
 from clbeam.imaging.postprocess import hann_smooth
@@ -117,6 +118,11 @@ class ImagingOptions:
             require(len(band) == 2 and all(np.isfinite(band)) and band[0] + band[1] > 0, OptionError,
                     f"seabed band must be (above, below) metres with a positive width, got {self.seabed_band_m!r}")
             object.__setattr__(self, "seabed_band_m", band)
+        require(not self.mlh or "cf" in self.outputs, OptionError,
+                "mlh merges coherence peaks, which need the cf output")
+        require(self.seabed_depth_m is None or self.seabed_band_m is not None or self.sediment_speed_m_s is not None,
+                OptionError, "a seabed depth serves the seabed band or the sediment speed: give one of them too, "
+                "or leave the depth out")
         require(self.precision in (None, "float32", "float64"), OptionError,
                 f"precision '{self.precision}' is unknown, expected 'float32' or 'float64'")
         for name, value, (lo, hi) in (("sediment speed", self.sediment_speed_m_s, SEDIMENT_SPEED_RANGE_M_S),
@@ -166,6 +172,14 @@ class PingImage:
         """Earth-frame grid centre ``(y, z)`` (m) of this ping."""
         return self.context.centre_yz_m
 
+    @property
+    def source_yz_m(self) -> tuple:
+        """Deprecated name of :attr:`centre_yz_m` (the grid centre, not the rolled source: that is
+        ``context.source_yz_m``); kept for one release."""
+        warnings.warn("PingImage.source_yz_m is deprecated: it is the grid centre, now PingImage.centre_yz_m",
+                      DeprecationWarning, stacklevel=2)
+        return self.centre_yz_m
+
 
 class Imager:
     """Images pings on a fixed grid with fixed options.
@@ -196,6 +210,7 @@ class Imager:
         self.grid = grid
         self.options = opts = options or ImagingOptions()
         check_grid_fits_memory(grid, opts)
+        check_mode_runs_on(interp_mode(opts.interp), engine.name if engine is not None else backend or "opencl")
         if engine is None:
             engine = get_engine(backend or "opencl", device=device, precision=opts.precision)
         else:
@@ -204,8 +219,6 @@ class Imager:
                     f"backend '{backend}' differs from the engine's '{engine.name}'")
             require(opts.precision in (None, engine.precision), OptionError,
                     f"precision '{opts.precision}' differs from the engine's '{engine.precision}'")
-        require(engine.name == "reference" or interp_mode(opts.interp).kernel_id >= 0, OptionError,
-                f"interpolation mode '{opts.interp}' exists in the reference backend only; use backend 'reference'")
         self.engine = engine
         self._tables: dict = {}
 

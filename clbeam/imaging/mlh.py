@@ -125,9 +125,6 @@ def default_range_tolerance_m(grid: PolarGrid, *, band_hz: tuple[float, float] =
     return pulse_range_resolution_m(band_hz, sound_speed_m_s) + HANN_HALF_SUPPORT_CELLS * dr
 
 
-# ---------------------------------------------------------------------------
-# Sub-cell vertex
-# ---------------------------------------------------------------------------
 def arc_tolerances(grid: PolarGrid, *, band_hz: tuple[float, float] = SBP29_BAND_HZ,
                    array_width_m: float = SBP29_ARRAY_WIDTH_M, sound_speed_m_s: float = SOUND_SPEED_M_S) -> dict:
     """Range tolerance (m) and main-lobe width (direction cosine) of the arcs
@@ -138,6 +135,9 @@ def arc_tolerances(grid: PolarGrid, *, band_hz: tuple[float, float] = SBP29_BAND
             "max_gap_u": main_lobe_u(0.5 * sum(band_hz), max(array_width_m, 1e-3), sound_speed_m_s)}
 
 
+# ---------------------------------------------------------------------------
+# Sub-cell vertex
+# ---------------------------------------------------------------------------
 def parabolic_vertex(f_minus, f_centre, f_plus, *, kind: str = "parabola", max_offset: float = 0.5):
     """Sub-cell offset of a peak from three equally spaced samples (closed form).
 

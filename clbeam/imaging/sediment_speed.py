@@ -99,9 +99,29 @@ def refine_maximum(x: np.ndarray, y: np.ndarray) -> float:
     return float(x[i] + off * (x[i + 1] - x[i]))
 
 
+def _checked_speeds(speeds_m_s) -> np.ndarray:
+    """The candidate speeds (m/s): at least 3, increasing, equally spaced."""
+    speeds = np.asarray(speeds_m_s, dtype=np.float64)
+    require(speeds.ndim == 1 and speeds.size >= 3, OptionError, "give at least 3 candidate sediment speeds")
+    steps = np.diff(speeds)
+    require(bool(np.all(steps > 0)) and np.allclose(steps, steps[0]), OptionError,
+            "candidate sediment speeds must be increasing and equally spaced")
+    return speeds
+
+
+def _scan_options(base: ImagingOptions, seabed_depth_m: float, threshold: float, first_speed_m_s: float):
+    """The scan's imaging options: ``base`` with the seabed depth, MLH, threshold and a sediment speed
+    set (``base`` giving any of them itself is refused)."""
+    require(base.sediment_speed_m_s is None and base.seabed_band_m is None and base.seabed_depth_m is None
+            and not base.mlh, OptionError, "the sediment-speed scan sets the sediment speed, seabed depth, MLH and "
+            "seabed band itself: leave them out of its options")
+    return dataclasses.replace(base, seabed_depth_m=float(seabed_depth_m), mlh=True, threshold=threshold,
+                               outputs=tuple(set(base.outputs) | {"intensity", "cf"}), sediment_speed_m_s=first_speed_m_s)
+
+
 def scan_sediment_speed(ping, grid: PolarGrid, *, seabed_depth_m: float, speeds_m_s, options: ImagingOptions | None = None,
-                        engine=None, backend: str = "opencl", seabed_margin_m: float = 1.0, threshold: float = 0.5,
-                        progress=None) -> SpeedScan:
+                        engine=None, backend: str | None = None, device=None, seabed_margin_m: float = 1.0,
+                        threshold: float = 0.5, progress=None) -> SpeedScan:
     """Image ``ping`` with each candidate sediment speed and measure the
     coherence of its sub-bottom reflector (module docstring).
 
@@ -116,10 +136,12 @@ def scan_sediment_speed(ping, grid: PolarGrid, *, seabed_depth_m: float, speeds_
     speeds_m_s : array_like
         Equally spaced candidate sediment speeds (m/s), within 1300-2000.
     options : ImagingOptions, optional
-        Mode and the rest; the sediment speed, seabed depth, MLH merging and
-        threshold are set here.
+        Mode and the rest, without a sediment speed, seabed band, seabed
+        depth or MLH (the scan sets them; options giving them are refused).
     engine : object, optional
         An engine to share across the candidates.
+    backend, device : optional
+        Engine backend and OpenCL device when no engine is given.
     seabed_margin_m : float
         Detections within this depth below the seabed are left out (m).
     threshold : float
@@ -127,21 +149,16 @@ def scan_sediment_speed(ping, grid: PolarGrid, *, seabed_depth_m: float, speeds_
     progress : callable, optional
         Called with a message per candidate.
     """
-    speeds = np.asarray(speeds_m_s, dtype=np.float64)
-    require(speeds.ndim == 1 and speeds.size >= 3, OptionError, "give at least 3 candidate sediment speeds")
-    steps = np.diff(speeds)
-    require(bool(np.all(steps > 0)) and np.allclose(steps, steps[0]), OptionError,
-            "candidate sediment speeds must be increasing and equally spaced")
-    base = options or ImagingOptions()
-    opts = dataclasses.replace(base, seabed_depth_m=float(seabed_depth_m), mlh=True, threshold=threshold,
-                               outputs=tuple(set(base.outputs) | {"intensity", "cf"}), seabed_band_m=None)
+    speeds = _checked_speeds(speeds_m_s)
+    opts = _scan_options(options or ImagingOptions(), seabed_depth_m, threshold, float(speeds[0]))
     band = (ping.pulse.f0_hz, ping.pulse.f1_hz) if ping.pulse is not None and ping.pulse.f0_hz is not None else None
     sigma = pulse_range_resolution_m(tuple(sorted(band)), ping.sound_speed_m_s) if band else pulse_range_resolution_m()
     k, depth, count = [], [], []
     for c in speeds:
         if progress:
             progress(f"sediment speed {c:.0f} m/s")
-        imager = Imager(grid, dataclasses.replace(opts, sediment_speed_m_s=float(c)), backend=backend, engine=engine)
+        opts_c = dataclasses.replace(opts, sediment_speed_m_s=float(c))
+        imager = Imager(grid, opts_c, engine=engine) if engine else Imager(grid, opts_c, backend=backend, device=device)
         engine = imager.engine
         img = imager.image(ping)
         centre_z = float(img.centre_yz_m[1])

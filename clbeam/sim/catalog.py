@@ -15,11 +15,10 @@ import dataclasses
 import importlib.resources
 import math
 import os
+import tomllib
 import types
 import typing
 from pathlib import Path
-
-import tomllib
 
 from clbeam.errors import OptionError, require
 from clbeam.sim.scene import TARGET_KINDS, Scene, Water

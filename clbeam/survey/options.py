@@ -153,6 +153,8 @@ def survey_parameters(scan: ScanResult, options: SurveyOptions) -> dict:
     """
     g = options.grid
     imaging = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(options.imaging).items()}
+    # the precision the engine will run, not the option's "default" (None): one survey, one stored value
+    imaging["precision"] = options.imaging.precision or ("float64" if options.backend == "reference" else "float32")
     return {
         "format": SURVEY_FORMAT,
         "grid": {"ranges_m": _axis_summary(g.ranges_m), "angles_deg": _axis_summary(g.angles_deg),

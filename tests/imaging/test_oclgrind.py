@@ -21,7 +21,7 @@ def test_kernels_are_clean_under_oclgrind():
     assert oclgrind, "oclgrind is not installed (Debian package 'oclgrind'; the set-up script installs it)"
     env = dict(os.environ, CLBEAM_DEVICE="")
     r = subprocess.run([oclgrind, "--uninitialized", "--check-api", "--data-races", sys.executable,
-                        str(HERE / "oclgrind_run.py")], capture_output=True, text=True, env=env, timeout=900)
+                        str(HERE.parent / "oclgrind_run.py")], capture_output=True, text=True, env=env, timeout=900)
     out = r.stdout + r.stderr
     assert r.returncode == 0, out[-3000:]
     assert "device: Oclgrind Simulator" in r.stdout, out[-2000:]

@@ -225,6 +225,12 @@ def check_outputs(outputs) -> frozenset[str]:
     return out
 
 
+def check_mode_runs_on(mode: InterpMode, backend: str) -> None:
+    """Raise :class:`OptionError` when ``backend`` (``"opencl"``, ``"reference"``) has no kernel for ``mode``."""
+    require(backend == "reference" or mode.kernel_id >= 0, OptionError,
+            f"interpolation mode '{mode.name}' exists in the reference backend only; use it (--backend reference)")
+
+
 def check_record_length(inp: BeamformInput, mode: InterpMode) -> None:
     """Raise :class:`GridError` when the record is shorter than the mode's support."""
     taps = mode.taps_before + mode.taps_after + 1

@@ -26,6 +26,7 @@ from clbeam.imaging.engine.common import (
     baseband,
     carrier_phase,
     cell_windows,
+    check_mode_runs_on,
     range_bases,
 )
 from clbeam.model.grid import PolarGrid
@@ -244,8 +245,7 @@ class OpenCLEngine(Engine):
 
     # -- imaging ----------------------------------------------------------
     def _check_mode(self, mode: InterpMode) -> None:
-        require(mode.kernel_id >= 0, OptionError,
-                f"interpolation mode '{mode.name}' exists in the reference backend only")
+        check_mode_runs_on(mode, self.name)
 
     def _beamform(self, inp, grid, mode, outs, range_window_m, scale: float) -> Sums:
         """Image one ping on the device (see :meth:`Engine.beamform`): one

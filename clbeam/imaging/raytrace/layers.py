@@ -4,7 +4,7 @@ Per layer, from depth ``a`` (speed ``c_a``, ``cos_a``) down to ``b``
 (``h = b - a``), a ray of parameter ``p`` advances ``X``, travels ``T`` and
 has length ``L`` (the forms of :mod:`clbeam.imaging.raytrace`, exact for
 ``g = 0`` and without cancellation for small ``p``, ``g`` or ``h``).  Targets
-are grouped by the layers their rays start and end in (:class:`_Block`) so
+are grouped by the layers their rays start and end in (:class:`Block`) so
 that one group's sums run over the same segments, vectorised over its
 targets.
 """
@@ -21,7 +21,7 @@ from clbeam.model.svp import Layer
 _COS2_FLOOR = 1e-300
 
 
-def _cos(c, s, cmax, om):
+def ray_cos(c, s, cmax, om):
     """``cos(theta) = sqrt(1 - s^2)`` of the ray where the speed is ``c``
     (``s = p c``), from ``1 - s = ((c_max - c) + c (1 - sin(phi))) / c_max``,
     ``om = 1 - sin(phi)``: no cancellation where the ray is near horizontal."""
@@ -65,10 +65,10 @@ def _segments(layers, i: int, k: int) -> tuple[_Segment, ...]:
     return tuple(segs)
 
 
-class _View:
-    """Some targets of a :class:`_Block` (all, or a sorted subset), contiguous by group."""
+class View:
+    """Some targets of a :class:`Block` (all, or a sorted subset), contiguous by group."""
 
-    def __init__(self, block: "_Block", idx: np.ndarray | None):
+    def __init__(self, block: "Block", idx: np.ndarray | None):
         self.idx = idx
         self.arr = block.arr if idx is None else {
             k: (v if np.ndim(v) == 0 else v[idx]) for k, v in block.arr.items()}
@@ -99,7 +99,7 @@ def _group_order(key: np.ndarray) -> np.ndarray | None:
     return np.concatenate([np.flatnonzero(key == g) for g in present])
 
 
-class _Block:
+class Block:
     """Targets below their sources, sorted by the layers their rays start and end in.
 
     Rays of one group (same start layer ``i``, end layer ``k``) cross the same
@@ -145,7 +145,7 @@ class _Block:
         self.group_segments = [
             _segments(layers, i0 if scalar else int(gk) // n_l, int(gk) if scalar else int(gk) % n_l)
             for gk in self.group_keys]
-        self.view_all = _View(self, None)
+        self.view_all = View(self, None)
         self.cmax = self._max_speed()
 
     def original(self, idx: np.ndarray) -> np.ndarray:
@@ -179,7 +179,7 @@ class _Block:
             out[s:e] = x
         return out
 
-    def sums(self, view: _View, p: np.ndarray, om: np.ndarray, *, final: bool = False):
+    def sums(self, view: View, p: np.ndarray, om: np.ndarray, *, final: bool = False):
         """``X`` (m), ``dX/dp`` (m^2/s) and with ``final`` ``T`` (s), ``L`` (m)
         of rays ``p`` (``om = 1 - p c_max``) for the targets of ``view``."""
         cmax = view.take(self.cmax)
@@ -190,7 +190,7 @@ class _Block:
         return outs
 
 
-def _group_sums(view: _View, s: int, e: int, segs, p, cmax, om, *, final: bool):
+def _group_sums(view: View, s: int, e: int, segs, p, cmax, om, *, final: bool):
     """Closed-form sums over the segments of one group of targets."""
     x = 0.0
     xp = 0.0
@@ -201,9 +201,9 @@ def _group_sums(view: _View, s: int, e: int, segs, p, cmax, om, *, final: bool):
     def cos_at(c):
         if isinstance(c, float):
             if c not in cos_cache:
-                cos_cache[c] = _cos(c, p * c, cmax, om)
+                cos_cache[c] = ray_cos(c, p * c, cmax, om)
             return cos_cache[c]
-        return _cos(c, p * c, cmax, om)
+        return ray_cos(c, p * c, cmax, om)
 
     for seg in segs:
         h = view.value(seg.h, s, e)

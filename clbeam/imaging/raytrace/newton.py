@@ -13,7 +13,7 @@ import logging
 
 import numpy as np
 
-from clbeam.imaging.raytrace.layers import _Block, _cos, _View
+from clbeam.imaging.raytrace.layers import Block, View, ray_cos
 
 log = logging.getLogger(__name__)
 
@@ -34,18 +34,18 @@ class _Work:
     block), their ``t``, bracket ``[lo, hi]``, ``c_max``, ``y``, ``dz^2`` and
     distance ``rho`` (m)."""
 
-    def __init__(self, block: _Block, t: np.ndarray, live: np.ndarray):
+    def __init__(self, block: Block, t: np.ndarray, live: np.ndarray):
         a = block.arr
         y, dz, cmax = a["y"], a["dz"], block.cmax
         self.live = live
         if live.size == block.n:
             self.view, self.t, self.cm, self.y, self.dz2 = block.view_all, t.copy(), cmax, y, dz * dz
         else:
-            self.view, self.t, self.cm, self.y, self.dz2 = _View(block, live), t[live], cmax[live], y[live], (dz * dz)[live]
+            self.view, self.t, self.cm, self.y, self.dz2 = View(block, live), t[live], cmax[live], y[live], (dz * dz)[live]
         self.lo, self.hi = np.zeros(self.t.size), np.ones(self.t.size)
         self.rho = np.sqrt(self.dz2 + self.y * self.y)
 
-    def step(self, block: _Block, loose: bool) -> tuple[np.ndarray, np.ndarray]:
+    def step(self, block: Block, loose: bool) -> tuple[np.ndarray, np.ndarray]:
         """One safeguarded Newton step of every live target: the masks of the
         converged ones (``t`` kept) and of those whose step is taken unchecked."""
         p, om, inv = _ray(self.t, self.cm)
@@ -70,10 +70,10 @@ class _Work:
         ok[self.live[done]] = True
         pending[self.live[last]] = True
 
-    def keep(self, block: _Block, keep: np.ndarray) -> None:
+    def keep(self, block: Block, keep: np.ndarray) -> None:
         """Go on with the live targets ``keep`` only."""
         self.live = self.live[keep]
-        self.view = _View(block, self.live)
+        self.view = View(block, self.live)
         for name in ("t", "cm", "y", "dz2", "lo", "hi", "rho"):
             setattr(self, name, getattr(self, name)[keep])
 
@@ -88,7 +88,7 @@ def _ray(t: np.ndarray, cmax: np.ndarray):
     return (1.0 - t2) * inv / cmax, 2.0 * t2 * inv, inv
 
 
-def _newton(block: _Block, t: np.ndarray, *, subset: np.ndarray | None = None, loose: bool = True):
+def newton_solve(block: Block, t: np.ndarray, *, subset: np.ndarray | None = None, loose: bool = True):
     """``t = tan(chi / 2)`` of the ray with ``X = y`` for the targets of the
     block (or ``subset``), starting from ``t``.
 
@@ -129,11 +129,11 @@ def _newton(block: _Block, t: np.ndarray, *, subset: np.ndarray | None = None, l
     return t, ok, pending
 
 
-def _fill_rays(block: _Block, t: np.ndarray, idx: np.ndarray, pending: np.ndarray, fields) -> tuple[dict, np.ndarray]:
+def fill_rays(block: Block, t: np.ndarray, idx: np.ndarray, pending: np.ndarray, fields) -> tuple[dict, np.ndarray]:
     """The ``fields`` of the targets ``idx`` of the block (unsigned, in the
     order of ``idx``), and those of the ``pending`` ones whose residual is
     too large (indices into the block)."""
-    view = _View(block, idx)
+    view = View(block, idx)
     cm = block.cmax[idx]
     p, om, _ = _ray(t[idx], cm)
     x, xp, tt, length = block.sums(view, p, om, final=True)
@@ -147,16 +147,16 @@ def _fill_rays(block: _Block, t: np.ndarray, idx: np.ndarray, pending: np.ndarra
         elif k == "launch_sin":
             out[k] = np.minimum(p * c0, 1.0)
         elif k == "launch_cos":
-            out[k] = _cos(c0, p * c0, cm, om)
+            out[k] = ray_cos(c0, p * c0, cm, om)
         elif k == "arrival_sin":
             out[k] = np.minimum(p * ct, 1.0)
         elif k == "arrival_cos":
-            out[k] = _cos(ct, p * ct, cm, om)
+            out[k] = ray_cos(ct, p * ct, cm, om)
         elif k == "path_length_m":
             out[k] = length
         elif k == "ray_parameter_s_m":
             out[k] = p
         elif k == "wavefront_radius_m":
-            cos0 = _cos(c0, p * c0, cm, om)
+            cos0 = ray_cos(c0, p * c0, cm, om)
             out[k] = cos0 * cos0 * xp / c0
     return out, bad

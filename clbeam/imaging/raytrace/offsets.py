@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from clbeam.errors import GeometryError, OptionError, require
-from clbeam.imaging.raytrace.rays import _eigen_fields
+from clbeam.imaging.raytrace.rays import eigen_fields
 from clbeam.imaging.raytrace.tables import TravelTimeTables
 from clbeam.model.grid import PolarGrid
 from clbeam.model.svp import SoundSpeedProfile
@@ -145,7 +145,7 @@ def element_travel_times(profile: SoundSpeedProfile, points_yz, scatterers_yz, *
     za = np.minimum(zp, zs)
     zb = np.maximum(zp, zs)
     dy = sc[None, :, 0] - pts[:, 0:1]
-    return _eigen_fields(profile, za, dy, zb, ("time_s",), workers)["time_s"]
+    return eigen_fields(profile, za, dy, zb, ("time_s",), workers)["time_s"]
 
 
 def _yz_array(values, name: str) -> np.ndarray:

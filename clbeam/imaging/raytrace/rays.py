@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from clbeam.errors import GeometryError, OptionError, require
-from clbeam.imaging.raytrace.layers import _Block
-from clbeam.imaging.raytrace.newton import _fill_rays, _newton
+from clbeam.imaging.raytrace.layers import Block
+from clbeam.imaging.raytrace.newton import fill_rays, newton_solve
 from clbeam.model.svp import SoundSpeedProfile
 
 #: targets per block of the vectorised solver (keeps the work arrays in cache)
@@ -106,13 +106,13 @@ def eigenrays(profile: SoundSpeedProfile, source_depth_m, target_y_m, target_z_m
     GeometryError
         When a source or target coordinate is not finite.
     """
-    return Eigenrays(**_eigen_fields(profile, source_depth_m, target_y_m, target_z_m, _FIELDS, workers))
+    return Eigenrays(**eigen_fields(profile, source_depth_m, target_y_m, target_z_m, _FIELDS, workers))
 
 
-def _eigen_fields(profile, source_depth_m, target_y_m, target_z_m, fields, workers) -> dict:
+def eigen_fields(profile, source_depth_m, target_y_m, target_z_m, fields, workers) -> dict:
     """The ``fields`` of :class:`Eigenrays` (and ``reachable``), each of the
     broadcast shape of the inputs."""
-    _check_profile(profile)
+    check_profile(profile)
     z0, y, z = (np.asarray(v, dtype=np.float64) for v in (source_depth_m, target_y_m, target_z_m))
     for name, v in (("source depth", z0), ("target y", y), ("target z", z)):
         require(bool(np.all(np.isfinite(v))), GeometryError, f"{name} must be finite (m)")
@@ -124,18 +124,18 @@ def _eigen_fields(profile, source_depth_m, target_y_m, target_z_m, fields, worke
 
     def run(lo: int, hi: int) -> None:
         za = float(z0) if scalar_source else z0b[lo:hi]
-        _solve_block(profile, za, yb[lo:hi], zb[lo:hi], {k: v[lo:hi] for k, v in out.items()})
+        solve_block(profile, za, yb[lo:hi], zb[lo:hi], {k: v[lo:hi] for k, v in out.items()})
 
-    _map_blocks(run, yb.size, workers)
+    map_blocks(run, yb.size, workers)
     return {k: v.reshape(shape) for k, v in out.items()}
 
 
-def _check_profile(profile) -> None:
+def check_profile(profile) -> None:
     require(isinstance(profile, SoundSpeedProfile), OptionError,
             f"a SoundSpeedProfile is needed, got {type(profile).__name__}")
 
 
-def _map_blocks(fn, n: int, workers: int | None, step: int = BLOCK) -> None:
+def map_blocks(fn, n: int, workers: int | None, step: int = BLOCK) -> None:
     """``fn(lo, hi)`` over ``range(n)`` in spans of ``step``, on ``workers`` threads."""
     spans = [(s, min(s + step, n)) for s in range(0, n, step)] or [(0, 0)]
     nw = (os.cpu_count() or 1) if workers is None else max(1, int(workers))
@@ -148,7 +148,7 @@ def _map_blocks(fn, n: int, workers: int | None, step: int = BLOCK) -> None:
             f.result()
 
 
-def _solve_block(profile: SoundSpeedProfile, za, y: np.ndarray, zb: np.ndarray, out: dict) -> None:
+def solve_block(profile: SoundSpeedProfile, za, y: np.ndarray, zb: np.ndarray, out: dict) -> None:
     """Eigenrays of one block (``za`` a float or an array like ``y``) into
     ``out``: flat arrays named as the fields of :class:`Eigenrays` (any
     subset) and ``reachable``."""
@@ -162,17 +162,17 @@ def _solve_block(profile: SoundSpeedProfile, za, y: np.ndarray, zb: np.ndarray, 
     todo = np.flatnonzero(below) if not below.all() else np.arange(y.size)
     if todo.size:
         sel = (lambda v: v) if todo.size == y.size else (lambda v: v[todo])
-        block = _Block(profile.layers, za if np.ndim(za) == 0 else sel(za_arr), np.abs(sel(y)), sel(zb))
+        block = Block(profile.layers, za if np.ndim(za) == 0 else sel(za_arr), np.abs(sel(y)), sel(zb))
         a = block.arr
-        t, ok, pending = _newton(block, a["dz"] / (np.hypot(a["dz"], a["y"]) + a["y"]))   # straight line
+        t, ok, pending = newton_solve(block, a["dz"] / (np.hypot(a["dz"], a["y"]) + a["y"]))   # straight line
         idx = np.flatnonzero(ok)
-        sub, bad = _fill_rays(block, t, idx, pending, fields)
+        sub, bad = fill_rays(block, t, idx, pending, fields)
         if bad.size:
             # a last step taken unchecked fell short: iterate those to the end
-            t2, ok2, _ = _newton(block, t, subset=bad, loose=False)
+            t2, ok2, _ = newton_solve(block, t, subset=bad, loose=False)
             t[bad] = t2[bad]
             good, failed = bad[ok2[bad]], bad[~ok2[bad]]
-            redo, _ = _fill_rays(block, t, good, np.zeros(block.n, dtype=bool), fields)
+            redo, _ = fill_rays(block, t, good, np.zeros(block.n, dtype=bool), fields)
             pos = np.searchsorted(idx, good)
             for k in fields:
                 sub[k][pos] = redo[k]

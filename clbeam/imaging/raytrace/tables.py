@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from clbeam.errors import GeometryError, require
-from clbeam.imaging.raytrace.rays import BLOCK, _check_profile, _map_blocks, _solve_block
+from clbeam.imaging.raytrace.rays import BLOCK, check_profile, map_blocks, solve_block
 from clbeam.model.grid import PolarGrid
 from clbeam.model.svp import SoundSpeedProfile
 
@@ -84,7 +84,7 @@ def travel_time_tables(profile: SoundSpeedProfile, grid: PolarGrid, centre_depth
         (a horizontal ray).  The paper's grid (8.8 M cells) takes about 3 s
         on 2 cores.
     """
-    _check_profile(profile)
+    check_profile(profile)
     require(isinstance(grid, PolarGrid), GeometryError, f"a PolarGrid is needed, got {type(grid).__name__}")
     z0 = float(centre_depth_m)
     require(math.isfinite(z0), GeometryError, f"centre depth must be finite, got {centre_depth_m!r}")
@@ -109,10 +109,10 @@ def _table_cells(profile, z0: float, th: np.ndarray, rng: np.ndarray, workers: i
         y = (sin_t[a0:a1, None] * rng[None, :]).ravel()
         z = (z0 + cos_t[a0:a1, None] * rng[None, :]).ravel()
         dest = {k: v[a0:a1].reshape(-1) for k, v in out.items()}
-        _solve_block(profile, z0, y, z, dest)
+        solve_block(profile, z0, y, z, dest)
         if rng[0] == 0:
             out["launch_sin"][a0:a1, 0] = sin_t[a0:a1]
             out["launch_cos"][a0:a1, 0] = cos_t[a0:a1]
 
-    _map_blocks(run, th.size, workers, step=max(1, BLOCK // n_r))
+    map_blocks(run, th.size, workers, step=max(1, BLOCK // n_r))
     return out

@@ -43,11 +43,12 @@ import math
 import numpy as np
 from scipy import interpolate, special
 
+from clbeam.constants import SOUND_SPEED_M_S
 from clbeam.errors import OptionError, require
 from clbeam.seabed.avo.sediment import SedimentParams, sediment_from_grain_size
 
 #: Water sound speed used by default for the acoustic wavenumber (m/s).
-DEFAULT_SOUND_SPEED_M_S = 1500.0
+DEFAULT_SOUND_SPEED_M_S = SOUND_SPEED_M_S
 #: Lambert parameter of Mackenzie (1961), 10 log10(mu) in dB.
 LAMBERT_MU_DB = -27.0
 

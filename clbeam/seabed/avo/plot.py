@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from clbeam.constants import SOUND_SPEED_M_S
 from clbeam.io.figures import pyplot
 from clbeam.seabed.avo.attributes import (
     FAR_INTERCEPT_DEG,
@@ -158,7 +159,7 @@ def plot_along_track(path, position, series: dict, *, sides=None, xlabel: str = 
     return _save(fig, path)
 
 
-def write_figures(folder, patches, rows, *, frequency_hz=None, sound_speed_m_s: float = 1500.0) -> list[Path]:
+def write_figures(folder, patches, rows, *, frequency_hz=None, sound_speed_m_s: float = SOUND_SPEED_M_S) -> list[Path]:
     """The AVO figures of a survey into ``folder`` (PNG); returns their paths.
 
     ``avo_response_first.png`` / ``avo_response_last.png``: the first and the

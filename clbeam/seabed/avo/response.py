@@ -61,6 +61,13 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
+from clbeam.constants import (
+    SBP29_ARRAY_WIDTH_M,
+    SBP29_BAND_HZ,
+    SBP29_CENTRE_FREQUENCY_HZ,
+    SBP29_TX_LENGTH_M,
+    SOUND_SPEED_M_S,
+)
 from clbeam.errors import ClbeamError, OptionError, require
 from clbeam.io.images import open_images
 from clbeam.model.geodesy import along_track_m
@@ -106,11 +113,11 @@ class ResponseOptions:
         Length of the moving mean along range used for picking (m).
     """
 
-    frequency_hz: float = 5500.0
-    bandwidth_hz: float = 7000.0
-    sound_speed_m_s: float = 1500.0
-    tx_length_m: float = 3.5
-    rx_width_m: float = 3.528
+    frequency_hz: float = SBP29_CENTRE_FREQUENCY_HZ
+    bandwidth_hz: float = SBP29_BAND_HZ[1] - SBP29_BAND_HZ[0]
+    sound_speed_m_s: float = SOUND_SPEED_M_S
+    tx_length_m: float = SBP29_TX_LENGTH_M
+    rx_width_m: float = SBP29_ARRAY_WIDTH_M
     absorption_db_per_km: float | None = None
     temperature_c: float = 10.0
     salinity_psu: float = 35.0

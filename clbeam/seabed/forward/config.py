@@ -26,10 +26,9 @@ so a misspelt key does not silently fall back to a default.
 from __future__ import annotations
 
 import math
+import tomllib
 from importlib import resources
 from pathlib import Path
-
-import tomllib
 
 from clbeam.errors import ClbeamError, OptionError, require
 from clbeam.seabed.forward.attenuation import LinearAttenuation, PowerLawAttenuation

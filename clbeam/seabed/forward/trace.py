@@ -62,7 +62,7 @@ class Chirp:
         return 0.5 * (self.f0_hz + self.f1_hz)
 
     def replica(self, sample_rate_hz: float) -> np.ndarray:
-        """Sampled emission ``x[k]`` (:func:`clbeam.imaging.signal.lfm_replica`)."""
+        """Sampled emission ``x[k]`` (:func:`clbeam.model.pulse.lfm_replica`)."""
         return lfm_replica(f0_hz=self.f0_hz, f1_hz=self.f1_hz, duration_s=self.duration_s,
                            sample_rate_hz=sample_rate_hz)
 
