@@ -1,11 +1,8 @@
-"""Frames, motion correction and the polar image grid (SPEC §2).
+"""The polar image grid in the earth-referenced cross-track plane (SPEC §2).
 
-Vessel frame: ``x`` forward, ``y`` to starboard, ``z`` down, origin at the
-array reference point.  The earth frame used for imaging has the same origin
-and axes with ``z`` along gravity: roll rotates the array and the source about
-``x`` (positive roll = starboard side down) and heave shifts them along ``z``
-(positive heave = vessel up, so positions move to smaller ``z``).  Pitch is
-ignored: the image is the 2-D cross-track plane ``x = 0``.
+Ranges from a centre (the source's nominal position unless given) and
+angles from nadir, positive to starboard; roll never moves the grid
+(:mod:`clbeam.imaging.geometry` moves the array into the earth frame).
 """
 
 from __future__ import annotations
