@@ -143,9 +143,15 @@ class ImageWriter:
             self._sonar_written = True
 
     def close(self) -> None:
-        """Flush and close the file."""
+        """Flush and close the file (a Zarr store's metadata consolidated again: the first ping added attributes)."""
         if self._file is not None and not self._zarr:
             self._file.close()
+        elif self._file is not None:
+            import zarr
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # consolidated metadata is not in the Zarr v3 spec: zarr says so
+                zarr.consolidate_metadata(str(self.path))
         self._file = None
 
     def __enter__(self):

@@ -105,7 +105,9 @@ class ReferenceEngine(Engine):
     def _beamform(self, inp: BeamformInput, grid: PolarGrid, mode: InterpMode, outs: frozenset,
                   range_window_m: np.ndarray | None, scale: float) -> Sums:
         """The sums over channels, cell block by cell block (see :meth:`Engine.beamform`)."""
-        data = np.asarray(inp.data, dtype=np.complex128) * scale
+        data = np.asarray(inp.data, dtype=np.complex128)
+        if scale != 1.0:  # only finite data are scaled (amplitude_exponent is 0 when a sample is infinite)
+            data = data * scale
         if mode.baseband:
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
         n_cells = grid.n_cells
