@@ -39,6 +39,10 @@ MAX_OFFSET_M = 100.0
 #: largest channel gain correction (dB) a ping file may give
 MAX_ABS_GAIN_DB = 60.0
 
+# -- accuracy -----------------------------------------------------------------
+#: default error budget of the intensity against the exact image (dB): picks mode, upsampling and beams
+DEFAULT_MAX_ERROR_DB = -40.0
+
 # -- detection (SPEC §3 step 7; Holland et al. 2024, Section III) -----------
 #: coherence-peak threshold on the smoothed CF (the paper's 0.25)
 PEAK_THRESHOLD = 0.25

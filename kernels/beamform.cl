@@ -26,6 +26,9 @@
  *   APODIZE             1: receive weights w_n (clbeam/apodization.py):
  *                       S = sum w p, Q = sum w |p|^2, W = sum w,
  *                       CF = |S|^2 / (W Q) in [0, 1] (Cauchy-Schwarz)
+ *   WANT_SIGNATURE      1: also G = sum g_n over the contributing channels,
+ *                       g_n a distinct number per channel: cells with equal G
+ *                       summed the same channels (beam-sampled imaging)
  *
  * Travel time in samples of cell r for channel n, with every position an
  * offset o from the grid centre and u the unit vector of the cell's angle:
@@ -84,6 +87,8 @@ __kernel void beamform(
     __global real_t *restrict out_q,
     __global int *restrict out_m,
     __global real_t *restrict out_w,           /* [n_angle_padded][N_RANGE] W, APODIZE with WANT_SUMS */
+    __global const real_t *restrict signature, /* [n_chan] g_n, WANT_SIGNATURE */
+    __global real_t *restrict out_g,           /* [n_angle_padded][N_RANGE] G, WANT_SIGNATURE */
     const int n_angle_padded,
     /* TRAVEL_TABLE: [N_RANGE][n_angle_padded] per cell */
     __global const int *restrict tab_int,      /* integer sample of (2 T - t0) fs */
@@ -123,6 +128,9 @@ __kernel void beamform(
     vreal sr = (vreal)0, si = (vreal)0, q = (vreal)0, m = (vreal)0;
 #if APODIZE
     vreal wsum = (vreal)0;
+#endif
+#if WANT_SIGNATURE
+    vreal gsum = (vreal)0;
 #endif
     for (int n = 0; n < n_chan; ++n) {
         const real_t oy = chan[4 * n], oz = chan[4 * n + 1], oq = chan[4 * n + 2], ox2 = chan[4 * n + 3];
@@ -169,6 +177,9 @@ __kernel void beamform(
         q += re * re + im * im;
 #endif
         m += select((vreal)0, (vreal)1, ok);
+#if WANT_SIGNATURE
+        gsum += select((vreal)0, (vreal)signature[n], ok);
+#endif
     }
     const vreal inten = sr * sr + si * si;
 #if APODIZE
@@ -192,5 +203,8 @@ __kernel void beamform(
 #if APODIZE
     SCATTER(real_t, out_w, cell, N_RANGE, wsum);
 #endif
+#endif
+#if WANT_SIGNATURE
+    SCATTER(real_t, out_g, cell, N_RANGE, gsum);
 #endif
 }

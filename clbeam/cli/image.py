@@ -76,7 +76,8 @@ def run(args) -> int:
             stack = PingStack(args.stack, opts.threshold)
             opts = dataclasses.replace(opts, outputs=tuple(set(opts.outputs) | {"intensity", "sums"}))
         imager = Imager(grid, opts, backend=args.backend, device=args.device)
-        attrs = {"interp": opts.interp, "upsample": opts.upsample, "backend": args.backend,
+        attrs = {"interp": opts.interp, "upsample": opts.upsample or "auto", "beams": args.beams,
+                 "max_error_db": opts.max_error_db, "backend": args.backend,
                  "apodization": opts.apodization, "calibrated": int(opts.calibrate), "stacked_pings": args.stack,
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         t0 = time.perf_counter()

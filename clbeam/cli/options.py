@@ -12,8 +12,8 @@ import importlib
 import sys
 from pathlib import Path
 
-from clbeam.constants import PEAK_THRESHOLD
-from clbeam.errors import ClbeamError
+from clbeam.constants import DEFAULT_MAX_ERROR_DB, PEAK_THRESHOLD
+from clbeam.errors import ClbeamError, OptionError
 
 
 def progress(iterable, *, total=None, desc="", quiet=False, unit="ping"):
@@ -51,8 +51,9 @@ def add_engine_choice(p, *, group=None) -> None:
     from clbeam.imaging.engine import INTERP_MODES
 
     g = group or p.add_argument_group("engine")
-    g.add_argument("--interp", default="cubic", choices=list(INTERP_MODES),
-                   help="interpolation mode (default cubic: see the README's run-time/error table); "
+    g.add_argument("--interp", default="auto", choices=["auto", *INTERP_MODES],
+                   help="interpolation mode (default auto: the cheapest mode, upsampling and beam sampling within "
+                        "--max-error-db; a mode given here is used as it is, every cell imaged directly); "
                         "'exact' runs on the reference backend only")
     g.add_argument("--backend", default="opencl", choices=["opencl", "reference"], help="imaging engine (default opencl)")
     g.add_argument("--device", default=None, help="OpenCL device: index or name substring (default: CLBEAM_DEVICE or the first)")
@@ -74,7 +75,14 @@ def add_imaging_options(p: argparse.ArgumentParser) -> None:
     """Engine choice, mode, outputs and the processing options of :class:`~clbeam.imaging.ImagingOptions`."""
     g = p.add_argument_group("imaging")
     add_engine_choice(p, group=g)
-    g.add_argument("--upsample", type=int, default=1, metavar="N", help="FFT upsampling of the analytic signal (default 1)")
+    g.add_argument("--upsample", type=int, default=None, metavar="N",
+                   help="FFT upsampling of the analytic signal (default: chosen with --interp auto, else 1)")
+    g.add_argument("--max-error-db", type=float, default=DEFAULT_MAX_ERROR_DB, metavar="DB",
+                   help=f"error budget of the intensity against the exact image (dB, default {DEFAULT_MAX_ERROR_DB:g}): "
+                        "--interp auto picks the cheapest setting that meets it")
+    g.add_argument("--beams", default="auto", metavar="auto|off|K[:TAPS]",
+                   help="beam-sampled imaging: auto (chosen by the budget with --interp auto), off (every cell "
+                        "directly), or an oversampling K of the aperture's band limit with TAPS interpolation taps")
     g.add_argument("--outputs", default="intensity,cf", metavar="LIST",
                    help="comma-separated outputs: intensity, cf, sums (default intensity,cf)")
     g.add_argument("--precision", default=None, choices=["float32", "float64"],
@@ -107,12 +115,26 @@ def options_from_args(args, **overrides):
 
     outputs = tuple(s.strip() for s in args.outputs.split(",") if s.strip())
     fields = dict(interp=args.interp, upsample=args.upsample, outputs=outputs, threshold=args.threshold,
+                  max_error_db=args.max_error_db, beams=parse_beams(args.beams),
                   sound_speed_m_s=args.sound_speed, precision=args.precision,
                   seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
                   seabed_depth_m=args.seabed_depth, apodization=args.apodization,
                   calibrate=not args.no_calibration, mlh=args.mlh, use_svp=not args.isospeed,
                   sediment_speed_m_s=args.sediment_speed)
     return ImagingOptions(**{**fields, **overrides})
+
+
+def parse_beams(text: str):
+    """``--beams`` as an :class:`~clbeam.imaging.ImagingOptions` value: ``"auto"``, ``None`` or a BeamSampling."""
+    from clbeam.imaging.engine.beams import BeamSampling
+
+    if text in ("auto", "off"):
+        return None if text == "off" else "auto"
+    k, _, taps = text.partition(":")
+    try:
+        return BeamSampling(float(k), int(taps) if taps else BeamSampling.taps)
+    except ValueError:
+        raise OptionError(f"--beams must be auto, off or K[:TAPS] (e.g. 1.5:12), got {text!r}") from None
 
 
 def grid_from_args(args, max_range_default: float):

@@ -91,7 +91,7 @@ def score_targets(peaks: list, truth_y: np.ndarray, truth_z: np.ndarray, names, 
     return scores, others
 
 
-def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", interp: str = "cubic",
+def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", interp: str = "auto",
              device=None, backend: str = "opencl", max_range_m: float = 700.0, progress=None) -> DemoResult:
     """Simulate, image, detect and draw; see the module docstring.
 

@@ -10,7 +10,9 @@ survey worker holds.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
+import math
 import os
 import time
 import warnings
@@ -19,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.constants import (
+    DEFAULT_MAX_ERROR_DB,
     PEAK_THRESHOLD,
     SEDIMENT_SPEED_RANGE_M_S,
     WATER_SPEED_RANGE_M_S,
@@ -30,13 +33,15 @@ from clbeam.imaging.apodization import (
     receive_weights,
 )
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
+from clbeam.imaging.engine.beams import BeamSampling
 from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs
+from clbeam.imaging.engine.errormodel import Setting, choose_setting, predicted_settings
 from clbeam.imaging.geometry import check_positions, to_earth_frame
 from clbeam.imaging.peaks import PingContext, peak_rows
 from clbeam.imaging.postprocess import hann_smooth
 from clbeam.imaging.raytrace import travel_time_tables
 from clbeam.imaging.seabed_band import pick_seabed_depth_m, seabed_window_m
-from clbeam.imaging.signal import compress_analytic, upsample_analytic
+from clbeam.imaging.signal import compress_analytic, pulse_band_hz, upsample_analytic
 from clbeam.model.grid import PolarGrid
 from clbeam.model.ping import Ping
 from clbeam.model.svp import SoundSpeedProfile
@@ -51,9 +56,16 @@ class ImagingOptions:
     Attributes
     ----------
     interp : str
-        Interpolation mode (see :data:`clbeam.imaging.engine.INTERP_MODES`).
-    upsample : int
-        FFT upsampling factor of the analytic signal before interpolation.
+        Interpolation mode (see :data:`clbeam.imaging.engine.INTERP_MODES`),
+        or ``"auto"``: the cheapest mode, upsampling and beam sampling whose
+        predicted error is within ``max_error_db``
+        (:mod:`clbeam.imaging.engine.errormodel`).
+    upsample : int or None
+        FFT upsampling factor of the analytic signal before interpolation;
+        ``None``: chosen with the mode (1 for a forced mode).
+    max_error_db : float
+        Error budget of the intensity against the exact image (dB) that
+        ``"auto"`` settings meet.
     outputs : tuple of str
         Requested outputs: ``"intensity"``, ``"cf"``, ``"sums"``; CF also
         gives the smoothed CF and the coherence peaks.
@@ -90,10 +102,15 @@ class ImagingOptions:
         Merge the coherence peaks on one main-lobe arc into one detection
         with a lobe-fitted position (:mod:`clbeam.imaging.mlh`); the peak rows then
         carry ``n_merged``, ``arc_extent_deg`` and ``arc_range_spread_m``.
+    beams : "auto", BeamSampling or None
+        Beam-sampled imaging (:mod:`clbeam.imaging.engine.beams`): the sums
+        on the beams the aperture resolves, interpolated to the grid's
+        angles; ``"auto"``: chosen by the budget (off with a forced mode,
+        which then images every cell as before); ``None`` computes every cell directly.
     """
 
-    interp: str = "cubic"
-    upsample: int = 1
+    interp: str = "auto"
+    upsample: int | None = None
     outputs: tuple = ("intensity", "cf")
     threshold: float = PEAK_THRESHOLD
     sound_speed_m_s: float | None = None
@@ -105,13 +122,20 @@ class ImagingOptions:
     use_svp: bool = True
     sediment_speed_m_s: float | None = None
     mlh: bool = False
+    beams: BeamSampling | str | None = "auto"
+    max_error_db: float = DEFAULT_MAX_ERROR_DB
 
     def __post_init__(self):
-        interp_mode(self.interp)
+        if self.interp != "auto":
+            interp_mode(self.interp)
+        require(self.beams is None or self.beams == "auto" or isinstance(self.beams, BeamSampling), OptionError,
+                f"beams must be 'auto', None or a BeamSampling, got {self.beams!r}")
+        require(math.isfinite(self.max_error_db) and self.max_error_db < 0, OptionError,
+                f"the error budget must be a negative number of dB, got {self.max_error_db!r}")
         object.__setattr__(self, "apodization", parse_window(self.apodization).label)
         object.__setattr__(self, "outputs", tuple(sorted(check_outputs(self.outputs))))
-        require(int(self.upsample) == self.upsample and 1 <= self.upsample <= 16, OptionError,
-                f"upsample must be an integer 1-16, got {self.upsample!r}")
+        require(self.upsample is None or (int(self.upsample) == self.upsample and 1 <= self.upsample <= 16),
+                OptionError, f"upsample must be an integer 1-16, got {self.upsample!r}")
         require(0 <= self.threshold <= 1, OptionError, f"threshold must be within 0-1, got {self.threshold!r}")
         if self.seabed_band_m is not None:
             band = tuple(float(v) for v in self.seabed_band_m)
@@ -154,6 +178,8 @@ class PingImage:
         Seconds spent per stage.
     n_channels_used : int
         Channels that took part.
+    setting : str
+        The mode, upsampling and beam sampling used, with the predicted error.
     """
 
     ping: int
@@ -166,6 +192,7 @@ class PingImage:
     context: PingContext
     timings_s: dict = field(default_factory=dict)
     n_channels_used: int = 0
+    setting: str = ""
 
     @property
     def centre_yz_m(self) -> tuple:
@@ -210,7 +237,8 @@ class Imager:
         self.grid = grid
         self.options = opts = options or ImagingOptions()
         check_grid_fits_memory(grid, opts)
-        check_mode_runs_on(interp_mode(opts.interp), engine.name if engine is not None else backend or "opencl")
+        if opts.interp != "auto":
+            check_mode_runs_on(interp_mode(opts.interp), engine.name if engine is not None else backend or "opencl")
         if engine is None:
             engine = get_engine(backend or "opencl", device=device, precision=opts.precision)
         else:
@@ -221,6 +249,7 @@ class Imager:
                     f"precision '{opts.precision}' differs from the engine's '{engine.precision}'")
         self.engine = engine
         self._tables: dict = {}
+        self._settings: dict = {}
 
     # -- preparation ------------------------------------------------------
     def analytic_channels(self, ping: Ping) -> tuple[np.ndarray, np.ndarray]:
@@ -260,10 +289,12 @@ class Imager:
         elements = to_earth_frame(ping.element_pos_m[used], roll_deg=ping.roll_deg, heave_m=ping.heave_m)
         source = to_earth_frame(ping.source_pos_m, roll_deg=ping.roll_deg, heave_m=ping.heave_m)
         centre = np.r_[0.0, self.grid.centre(tuple(ping.source_pos_m[1:]))]
+        band = pulse_band_hz(ping.pulse, ping.sample_rate_hz)
+        setting = self.setting(elements - centre, band, ping, data.shape[1])
         fs = ping.sample_rate_hz
-        if self.options.upsample > 1:
-            data = upsample_analytic(data, self.options.upsample)
-            fs *= self.options.upsample
+        if setting.upsample > 1:
+            data = upsample_analytic(data, setting.upsample)
+            fs *= setting.upsample
         fc = ping.pulse.centre_frequency_hz if ping.pulse is not None else None
         window = parse_window(self.options.apodization)
         weights = None if window.uniform else receive_weights(window, ping.element_pos_m[:, 1])[used]
@@ -271,8 +302,32 @@ class Imager:
             data=data, sample_rate_hz=fs, t0_s=ping.t0_s,
             sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
             element_offsets_m=elements - centre, source_offset_m=source - centre,
-            centre_frequency_hz=fc or 0.0, weights=weights)
+            centre_frequency_hz=fc or 0.0, weights=weights, band_hz=band)
         return self._with_tables(ping, inp, float(centre[2]))
+
+    def setting(self, offsets_m: np.ndarray, band_hz, ping: Ping, n_samples: int) -> Setting:
+        """Mode, upsampling and beam sampling for a ping of this array, band and sampling
+        (:func:`clbeam.imaging.engine.errormodel.choose_setting`; cached, logged once)."""
+        opts = self.options
+        forced = None if opts.interp == "auto" else opts.interp
+        # a forced mode images every cell directly unless beams are asked for too: it keeps its own results
+        beams = opts.beams if not (forced and opts.beams == "auto") else None
+        if len(offsets_m) == 0:  # no usable channel: the image is empty whatever the setting
+            return Setting(forced or "cubic", opts.upsample or 1, None, math.nan, math.nan)
+        band = band_hz or (0.0, 0.5 * ping.sample_rate_hz)
+        c = opts.sound_speed_m_s or ping.sound_speed_m_s
+        across = np.linalg.norm(offsets_m[:, 1:], axis=1)
+        key = (tuple(band), ping.sample_rate_hz, round(c, 3), across.round(6).tobytes(), n_samples)
+        setting = self._settings.get(key)
+        if setting is None:
+            span = float(np.deg2rad(np.ptp(self.grid.angles_deg)))
+            predicted = predicted_settings(across, band, ping.sample_rate_hz, c, n_angles=self.grid.shape[0],
+                                           n_ranges=self.grid.shape[1], angle_span_rad=span, n_samples=n_samples)
+            setting = choose_setting(predicted, opts.max_error_db, interp=forced,
+                                     upsample=opts.upsample or (1 if forced else None), beams=beams)
+            log.info("imaging setting: %s", setting.describe())
+            self._settings[key] = setting
+        return setting
 
     # -- sound-speed profile ----------------------------------------------
     def water_profile(self, ping: Ping):
@@ -297,16 +352,21 @@ class Imager:
                 depth = pick_seabed_depth_m(inp, profile=profile, centre_depth_m=centre_z_m)
             # 1 cm steps: a picked seabed that moves with heave reuses its tables
             profile = SoundSpeedProfile.with_sediment(profile, round(depth + centre_z_m, 2), c_sed)
-        key = (profile, round(centre_z_m, 6))
+        return dataclasses.replace(inp, table_source=functools.partial(self._grid_tables, profile, centre_z_m))
+
+    def _grid_tables(self, profile: SoundSpeedProfile, centre_z_m: float, grid: PolarGrid):
+        """The travel-time tables of ``grid`` through ``profile`` from a centre at ``centre_z_m``,
+        cached per profile, centre depth and grid (the output grid and the internal beam grid)."""
+        key = (profile, round(centre_z_m, 6), grid.shape, hash(grid.ranges_m.tobytes()), hash(grid.angles_deg.tobytes()))
         tables = self._tables.get(key)
         if tables is None:
             t0 = time.perf_counter()
-            tables = travel_time_tables(profile, self.grid, centre_z_m)
-            log.info("travel-time tables of a %d x %d grid in %.2f s", *self.grid.shape, time.perf_counter() - t0)
-            if len(self._tables) >= 2:  # about 41 bytes per cell each
+            tables = travel_time_tables(profile, grid, centre_z_m)
+            log.info("travel-time tables of a %d x %d grid in %.2f s", *grid.shape, time.perf_counter() - t0)
+            if len(self._tables) >= 3:  # about 41 bytes per cell each: two output grids and a beam grid
                 self._tables.pop(next(iter(self._tables)))
             self._tables[key] = tables
-        return dataclasses.replace(inp, tables=tables)
+        return tables
 
     # -- imaging ----------------------------------------------------------
     def image(self, ping: Ping, *, range_window_m: np.ndarray | None = None) -> PingImage:
@@ -331,9 +391,10 @@ class Imager:
         check_grid_reaches_record(inp, self.grid)
         t0 = time.perf_counter()
         outs = set(self.options.outputs)
-        sums = self.engine.beamform(inp, self.grid, interp=self.options.interp,
+        setting = self.setting(inp.element_offsets_m, inp.band_hz, ping, ping.n_samples)
+        sums = self.engine.beamform(inp, self.grid, interp=setting.interp,
                                     outputs=outs | {"intensity"} if "cf" in outs else outs,
-                                    range_window_m=range_window_m)
+                                    range_window_m=range_window_m, beams=setting.beams)
         t["image_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         context = PingContext.of_ping(ping, self.grid, self.options.sound_speed_m_s)
@@ -345,7 +406,7 @@ class Imager:
         return PingImage(ping=ping.index, grid=self.grid,
                          intensity=sums.intensity if "intensity" in outs else None, cf=sums.cf, cf_smooth=cf_smooth,
                          sums=sums if "sums" in outs else None, peaks=peaks or [], context=context, timings_s=t,
-                         n_channels_used=inp.n_channels)
+                         n_channels_used=inp.n_channels, setting=setting.describe())
 
     def _seabed_window(self, ping: Ping, inp: BeamformInput) -> np.ndarray:
         """Per-angle ranges of the seabed band around the given or picked seabed."""

@@ -117,3 +117,28 @@ def apply_channel_response(samples: np.ndarray, gain_db: np.ndarray, phase_deg: 
     a = np.fft.ifft(np.fft.fft(x, axis=-1) * analytic_weights(n), axis=-1)
     g = 10.0 ** (np.asarray(gain_db, dtype=np.float64) / 20.0) * np.exp(1j * np.deg2rad(phase_deg))
     return (g[:, None] * a).real
+
+
+def pulse_band_hz(pulse, sample_rate_hz: float, level_db: float = 40.0) -> tuple[float, float] | None:
+    """The band (Hz) of a transmit pulse: an LFM's sweep, or where an explicit
+    waveform's spectrum is within ``level_db`` of its peak; ``None`` without a pulse.
+
+    Parameters
+    ----------
+    pulse : Pulse or None
+        The ping's pulse (:class:`clbeam.model.pulse.Pulse`).
+    sample_rate_hz : float
+        Sample rate of the waveform (Hz).
+    level_db : float
+        Spectrum level below the peak that bounds the band (dB).
+    """
+    if pulse is None:
+        return None
+    if pulse.waveform is None:
+        return (min(pulse.f0_hz, pulse.f1_hz), max(pulse.f0_hz, pulse.f1_hz))
+    w = np.asarray(pulse.waveform, dtype=np.float64)
+    nfft = 1 << int(np.ceil(np.log2(max(8 * w.size, 256))))
+    spectrum = np.abs(np.fft.rfft(w, nfft))
+    f = np.fft.rfftfreq(nfft, 1.0 / sample_rate_hz)
+    inband = f[spectrum >= spectrum.max() * 10 ** (-level_db / 20)]
+    return (float(inband.min()), float(inband.max()))

@@ -121,8 +121,10 @@ class ImageWriter:
 
         ``img`` is a :class:`~clbeam.imaging.imager.PingImage`; its
         ``context`` (a :class:`~clbeam.imaging.peaks.PingContext`) gives the
-        per-ping values, and the first ping the file's pulse band and array
-        width (global attributes ``pulse_band_hz``, ``array_width_m``).
+        per-ping values, and the first ping the file's pulse band, array
+        width and imaging setting (global attributes ``pulse_band_hz``,
+        ``array_width_m``, ``imaging_setting``: mode, upsampling, beams and
+        predicted error).
         """
         arrays = image_arrays(img)
         missing = [v for v in self.variables if v not in arrays]
@@ -140,6 +142,8 @@ class ImageWriter:
         if not self._sonar_written:
             self._file.attrs["pulse_band_hz"] = [float(b) for b in ctx.band_hz]
             self._file.attrs["array_width_m"] = float(ctx.array_width_m)
+            if getattr(img, "setting", ""):
+                self._file.attrs["imaging_setting"] = img.setting
             self._sonar_written = True
 
     def close(self) -> None:

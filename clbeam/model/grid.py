@@ -7,7 +7,7 @@ angles from nadir, positive to starboard; roll never moves the grid
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,6 +38,8 @@ class PolarGrid:
     ranges_m: np.ndarray
     angles_deg: np.ndarray
     centre_yz_m: tuple[float, float] | None = None
+    #: angles may pass +-90 degrees (the internal beam grids of :mod:`clbeam.imaging.engine.beams`)
+    beyond_vertical: bool = field(default=False, repr=False)
 
     def __post_init__(self):
         r = np.ascontiguousarray(self.ranges_m, dtype=np.float64)
@@ -48,7 +50,7 @@ class PolarGrid:
         require(r[0] >= 0, GridError, f"grid ranges must be >= 0 m, got minimum {r.min():g} m")
         require(bool(np.all(np.diff(r) > 0)), GridError, "grid ranges must be strictly increasing")
         require(bool(np.all(np.diff(a) > 0)), GridError, "grid angles must be strictly increasing")
-        require(a[0] >= -90 and a[-1] <= 90, GridError,
+        require(self.beyond_vertical or (a[0] >= -90 and a[-1] <= 90), GridError,
                 f"grid angles must lie within [-90, 90] degrees, got [{a[0]:g}, {a[-1]:g}]")
         if self.centre_yz_m is not None:
             c = tuple(float(v) for v in self.centre_yz_m)
@@ -85,6 +87,12 @@ class PolarGrid:
         ranges = min_range_m + range_res_m * np.arange(n_r)
         angles = a0 + angle_res_deg * np.arange(n_a)
         return cls(ranges, angles, centre_yz_m)
+
+    @classmethod
+    def beams(cls, ranges_m, angles_deg) -> "PolarGrid":
+        """An internal beam grid: like a grid, but its angles may pass +-90 degrees
+        (points above the array, where the delay-and-sum is still defined)."""
+        return cls(ranges_m, angles_deg, None, beyond_vertical=True)
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -245,7 +245,7 @@ def _draw(traced: _Traced, png: Path, axis: TraceAxis, title: str) -> None:
 
 
 def write_profile(pings_path, segy_path, *, png_path=None, plot: bool = True, max_range_m: float | None = None,
-                  interp: str = "cubic", analytic: bool = False, backend: str = "opencl", device=None,
+                  interp: str = "auto", analytic: bool = False, backend: str = "opencl", device=None,
                   engine=None, progress=None) -> ProfileResult:
     """Form the vertical beam of every ping of a ping file; write SEG-Y and a figure.
 

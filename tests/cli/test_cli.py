@@ -87,13 +87,15 @@ def test_bad_input_exits_2_with_one_line(ping_file, tmp_path, capsys, argv, mess
 
 
 def test_installed_command_runs_devices_and_help():
-    r = subprocess.run([sys.executable, "-m", "clbeam.cli.main", "devices"], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "clbeam.cli", "devices"], capture_output=True, text=True)
     assert r.returncode == 0 and "platform:" in r.stdout
-    r = subprocess.run([sys.executable, "-m", "clbeam.cli.main", "image", "--help"], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "clbeam.cli", "image", "--help"], capture_output=True, text=True)
     assert r.returncode == 0
     for opt in ("--range-res", "--angle-res", "--max-range", "--angles", "--interp", "--outputs", "--backend", "--device"):
         assert opt in r.stdout
-    assert "{nearest,linear" in r.stdout  # the modes as a choice list
+    from clbeam.imaging.engine import INTERP_MODES
+
+    assert "{auto," + ",".join(INTERP_MODES) + "}" in r.stdout  # the modes as a choice list (SPEC §8)
 
 
 def test_peaks_mlh_from_an_image_file_equal_those_written_while_imaging(ping_file, tmp_path):

@@ -1,6 +1,7 @@
 """Every kernel variant under Oclgrind: no invalid or uninitialised memory
 access on grids whose delays leave the record, and results equal to the
-reference."""
+reference (beam-sampled imaging: the beam-to-grid kernel against its NumPy
+form on the same beams)."""
 
 import os
 import re
@@ -33,8 +34,9 @@ def test_kernels_are_clean_under_oclgrind():
                 and "Function: clGetDeviceInfo" not in b]
     assert not problems, "\n".join(problems[:20])
     variants = [line for line in r.stdout.splitlines() if line.startswith("variant")]
-    assert len(variants) >= 72  # 6 modes x (2 precisions + 2 more layouts), each plain, apodized, ray-traced
+    assert len(variants) >= 80  # 6 modes x (2 precisions + 2 more layouts), each plain, apodized, ray-traced; beams
     assert sum("apodized" in line for line in variants) >= 24 and sum("tables" in line for line in variants) >= 24
+    assert sum(line.startswith("variant beams") for line in variants) >= 8
     for line in variants:
         rel = float(re.search(r"rel=(\S+)", line).group(1))
         assert rel < 1e-4 and "m_equal=True" in line, line

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from clbeam.errors import GeometryError, GridError, OptionError, require
+from clbeam.imaging.engine.beams import angular_band_limit, beam_plan, flagged_runs, interpolate_beams
 from clbeam.model.grid import PolarGrid
 
 #: outputs a caller may request
@@ -98,6 +100,12 @@ class BeamformInput:
         source, an element) then adds ``d(o) = |rho u - o| - rho`` at the
         centre's speed, with ``u`` the ray's launch direction and ``rho`` its
         wavefront radius (:func:`clbeam.imaging.raytrace.offset_time_approx`).
+    table_source : callable or None
+        ``table_source(grid)`` gives the tables of any grid (the beams of
+        beam-sampled imaging need their own); used when ``tables`` is None.
+    band_hz : (float, float) or None
+        Band of the analytic signal (Hz), for the angular band limit of
+        beam-sampled imaging; ``None``: up to half the sample rate.
     """
 
     data: np.ndarray
@@ -109,6 +117,8 @@ class BeamformInput:
     centre_frequency_hz: float = 0.0
     weights: np.ndarray | None = None
     tables: object | None = None
+    table_source: object | None = None
+    band_hz: tuple | None = None
 
     def __post_init__(self):
         d = self.data
@@ -139,6 +149,17 @@ class BeamformInput:
     def n_samples(self) -> int:
         """Samples per channel."""
         return self.data.shape[1]
+
+    def for_grid(self, grid: PolarGrid) -> "BeamformInput":
+        """This input with the travel-time tables of ``grid`` (from :attr:`table_source`), when it has a source."""
+        if self.table_source is None or (self.tables is not None and self.tables.grid is grid):
+            return self
+        return dataclasses.replace(self, tables=self.table_source(grid))
+
+    @property
+    def top_frequency_hz(self) -> float:
+        """Top of the signal band (Hz): :attr:`band_hz`, else half the sample rate."""
+        return float(max(self.band_hz)) if self.band_hz is not None else 0.5 * self.sample_rate_hz
 
     @property
     def samples_per_m(self) -> float:
@@ -185,6 +206,10 @@ class Sums:
     w : numpy.ndarray or None
         sum ``W = Σ w`` of the contributing channels' weights (apodized
         sums only; ``None`` means ``W = M``).
+    signature : numpy.ndarray or None
+        ``G = Σ g_n`` over the contributing channels (:func:`channel_signature`):
+        equal ``G`` means the same channels contributed (internal output
+        ``"signature"`` of beam-sampled imaging).
     """
 
     intensity: np.ndarray | None = None
@@ -193,6 +218,7 @@ class Sums:
     q: np.ndarray | None = None
     m: np.ndarray | None = None
     w: np.ndarray | None = None
+    signature: np.ndarray | None = None
 
     def rescaled(self, exponent: int) -> "Sums":
         """These sums of data divided by ``2**exponent``, returned to the data's
@@ -223,6 +249,12 @@ def check_outputs(outputs) -> frozenset[str]:
     bad = sorted(out - set(OUTPUTS))
     require(not bad, OptionError, f"output '{bad[0] if bad else ''}' is unknown, expected some of {', '.join(OUTPUTS)}")
     return out
+
+
+def channel_signature(n_channels: int) -> np.ndarray:
+    """A distinct number ``g_n`` in [1, 2) per channel (golden-ratio sequence): two sets of channels
+    that differ give different sums ``G`` (the smallest difference of two of them is about ``0.4 / n``)."""
+    return 1.0 + np.mod((np.arange(n_channels) + 1) * 0.6180339887498949, 1.0)
 
 
 def check_mode_runs_on(mode: InterpMode, backend: str) -> None:
@@ -357,7 +389,8 @@ class Engine:
     precision = ""
 
     def beamform(self, inp: BeamformInput, grid: PolarGrid, *, interp: str = "linear",
-                 outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None) -> Sums:
+                 outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None,
+                 beams=None) -> Sums:
         """Image one ping: sums ``S, Q, M`` and from them intensity and CF.
 
         The data are divided by a power of two (:func:`amplitude_exponent`)
@@ -376,6 +409,10 @@ class Engine:
             Any of ``"intensity"``, ``"cf"``, ``"sums"``.
         range_window_m : numpy.ndarray, optional
             ``(n_angle, 2)`` range interval (m) to compute per angle; others are 0.
+        beams : BeamSampling, optional
+            Beam-sampled imaging (:mod:`clbeam.imaging.engine.beams`): the
+            sums on the beams the aperture resolves, interpolated to the
+            grid; ``None``: every cell directly.
 
         Returns
         -------
@@ -387,10 +424,62 @@ class Engine:
         self._check_mode(mode)
         outs = check_outputs(outputs)
         exponent = amplitude_exponent(inp.data)
-        return self._beamform(inp, grid, mode, outs, range_window_m, np.ldexp(1.0, -exponent)).rescaled(exponent)
+        scale = np.ldexp(1.0, -exponent)
+        plan = None
+        if beams is not None:
+            limit = angular_band_limit(inp.element_offsets_m, inp.source_offset_m, inp.top_frequency_hz,
+                                       inp.sample_rate_hz / inp.samples_per_m, grid.angles_deg)
+            plan = beam_plan(grid, limit, beams, range_window_m)
+        if plan is None:
+            sums = self._beamform(inp.for_grid(grid), grid, mode, outs, range_window_m, scale)
+        else:
+            sums = self._beam_sampled(inp, grid, mode, outs, range_window_m, scale, plan)
+        return sums.rescaled(exponent)
+
+    def _beam_sampled(self, inp, grid, mode, outs, range_window_m, scale, plan) -> Sums:
+        """Sums on the plan's beams, interpolated to ``grid``; flagged cells imaged directly."""
+        weighted = inp.weights is not None
+        beam = self._beamform(inp.for_grid(plan.grid), plan.grid, mode, frozenset({"sums", "signature"}),
+                              plan.beam_window_m, scale)
+        out_windows = user_windows(grid, range_window_m) if range_window_m is not None \
+            else np.tile([0, grid.shape[1]], (grid.shape[0], 1))
+        arrays, flagged = self._interpolate_beams(plan, beam, outs, out_windows, weighted)
+        for window in flagged_runs(flagged):
+            direct = self._beamform(inp.for_grid(grid), grid, mode, outs, _window_m(grid, window), scale)
+            mask = flagged & _in_windows(window, grid.shape[1])
+            for name, value in _sums_arrays(direct).items():
+                arrays[name][mask] = value[mask]
+        return _sums_from(arrays)
+
+    def _interpolate_beams(self, plan, beam: "Sums", outs, out_windows, weighted):
+        """Output arrays and flagged cells from the beam sums (:func:`interpolate_beams`)."""
+        return interpolate_beams(plan, beam, outs, out_windows, weighted)
 
     def _check_mode(self, mode: InterpMode) -> None:
         """Raise :class:`OptionError` when this backend cannot run ``mode``."""
 
     def _beamform(self, inp, grid, mode, outs, range_window_m, scale: float) -> Sums:
         raise NotImplementedError
+
+
+def _window_m(grid: PolarGrid, window: np.ndarray) -> np.ndarray:
+    """Per-angle index windows ``[first, end)`` as the inclusive metre intervals :func:`user_windows` reads."""
+    n_r = grid.shape[1]
+    lo = grid.ranges_m[np.minimum(window[:, 0], n_r - 1)]
+    hi = grid.ranges_m[np.maximum(window[:, 1] - 1, 0)]
+    return np.where((window[:, 1] > window[:, 0])[:, None], np.column_stack([lo, hi]), [1.0, -1.0])
+
+
+def _in_windows(window: np.ndarray, n_range: int) -> np.ndarray:
+    j = np.arange(n_range)[None, :]
+    return (j >= window[:, :1]) & (j < window[:, 1:])
+
+
+def _sums_arrays(sums: Sums) -> dict:
+    """A :class:`Sums`' arrays by output name (``s`` complex)."""
+    return {k: v for k, v in (("intensity", sums.intensity), ("cf", sums.cf), ("s", sums.s), ("q", sums.q),
+                              ("m", sums.m), ("w", sums.w)) if v is not None}
+
+
+def _sums_from(arrays: dict) -> Sums:
+    return Sums(**{k: arrays.get(k) for k in ("intensity", "cf", "s", "q", "m", "w")})

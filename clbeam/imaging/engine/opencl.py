@@ -13,11 +13,11 @@ import logging
 import os
 import threading
 from dataclasses import dataclass
-from importlib import resources
 
 import numpy as np
 
 from clbeam.errors import DeviceError, GridError, OptionError, require
+from clbeam.imaging.engine.clsupport import KERNEL_FILES, kernel_source, output_macros, pyopencl
 from clbeam.imaging.engine.common import (
     BeamformInput,
     Engine,
@@ -26,9 +26,11 @@ from clbeam.imaging.engine.common import (
     baseband,
     carrier_phase,
     cell_windows,
+    channel_signature,
     check_mode_runs_on,
     range_bases,
 )
+from clbeam.imaging.engine.opencl_beams import interpolate_beams_cl
 from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
@@ -42,17 +44,9 @@ GPU_LAYOUT = (1, 64)
 TILE_MEMORY_FRACTION = 0.25
 
 
-def _cl():
-    try:
-        import pyopencl as cl
-    except ImportError as exc:  # pragma: no cover - pyopencl is a dependency
-        raise DeviceError(f"pyopencl is not importable ({exc}); install clbeam's dependencies") from None
-    return cl
-
-
 def list_devices() -> list:
     """All OpenCL devices of all platforms, in platform order (empty when none)."""
-    cl = _cl()
+    cl = pyopencl()
     try:
         platforms = cl.get_platforms()
     except cl.Error:
@@ -94,15 +88,6 @@ def choose_device(device=None):
     raise DeviceError(f"no OpenCL device matches '{device}'; found: " + "; ".join(device_label(d) for d in devices))
 
 
-def kernel_source() -> str:
-    """The beamforming kernel with its headers inlined (avoids include paths)."""
-    root = resources.files("clbeam.kernels")
-    src = (root / "beamform.cl").read_text()
-    for header in ("vector.h", "interp.h"):
-        src = src.replace(f'#include "{header}"', (root / header).read_text())
-    return src
-
-
 def device_has_fp64(dev) -> bool:
     """True when the device supports double precision (``cl_khr_fp64``)."""
     if "cl_khr_fp64" in dev.extensions:
@@ -133,7 +118,7 @@ class OpenCLEngine(Engine):
 
     def __init__(self, device=None, precision: str | None = None, max_tile_cells: int | None = None,
                  layout: tuple[int, int] | None = None):
-        cl = _cl()
+        cl = pyopencl()
         precision = precision or "float32"
         require(precision in ("float32", "float64"), OptionError,
                 f"precision '{precision}' is unknown, expected 'float32' or 'float64'")
@@ -181,37 +166,40 @@ class OpenCLEngine(Engine):
     # -- program cache ----------------------------------------------------
     def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int, apodize: bool = False,
                 table: bool = False):
-        key = (mode.name, tuple(sorted(outs)), n_samples, n_range, self.vec, apodize, table)
+        """The delay-and-sum kernel of this mode, outputs and sizes (built once)."""
+        return self.build("beamform", [
+            f"-DINTERP={mode.kernel_id}",
+            f"-DLANCZOS_A={max(mode.lanczos_a, 1)}",
+            f"-DBASEBAND={int(mode.baseband)}",
+            f"-DN_SAMPLES={n_samples}",
+            f"-DN_RANGE={n_range}",
+            *output_macros(outs),
+            f"-DVEC={self.vec}",
+            f"-DAPODIZE={int(apodize)}",
+            f"-DTRAVEL_TABLE={int(table)}",
+        ])
+
+    def build(self, entry: str, macros: list):
+        """Kernel ``entry`` of ``kernels/<entry's file>`` built with ``macros`` and this engine's
+        precision; kept, so each combination is built once."""
+        key = (entry, tuple(macros))
         k = self._kernels.get(key)
         if k is None:
-            cl = _cl()
-            opts = [
-                f"-DREAL_T={'double' if self.precision == 'float64' else 'float'}",
-                f"-DREAL_IS_DOUBLE={int(self.precision == 'float64')}",
-                f"-DINTERP={mode.kernel_id}",
-                f"-DLANCZOS_A={max(mode.lanczos_a, 1)}",
-                f"-DBASEBAND={int(mode.baseband)}",
-                f"-DN_SAMPLES={n_samples}",
-                f"-DN_RANGE={n_range}",
-                f"-DWANT_INTENSITY={int('intensity' in outs)}",
-                f"-DWANT_CF={int('cf' in outs)}",
-                f"-DWANT_SUMS={int('sums' in outs)}",
-                f"-DVEC={self.vec}",
-                f"-DAPODIZE={int(apodize)}",
-                f"-DTRAVEL_TABLE={int(table)}",
-            ]
+            cl = pyopencl()
+            opts = [f"-DREAL_T={'double' if self.precision == 'float64' else 'float'}",
+                    f"-DREAL_IS_DOUBLE={int(self.precision == 'float64')}", *macros]
             try:
-                prg = cl.Program(self.ctx, kernel_source()).build(options=opts)
+                prg = cl.Program(self.ctx, kernel_source(KERNEL_FILES[entry])).build(options=opts)
             except cl.Error as exc:
                 errors = [ln for ln in str(exc).splitlines() if "error" in ln.lower()]
                 log.debug("kernel build log: %s", exc)
                 raise DeviceError(f"kernel build failed on {self.label}: {(errors or [str(exc)])[-1].strip()}") from None
-            k = prg.beamform
+            k = getattr(prg, entry)
             self._kernels[key] = k
         return k
 
-    def _buffer(self, name: str, nbytes: int):
-        cl = _cl()
+    def buffer(self, name: str, nbytes: int):
+        cl = pyopencl()
         nbytes = max(int(nbytes), 16)
         buf = self._buffers.get(name)
         if buf is None or buf.size < nbytes:
@@ -224,15 +212,15 @@ class OpenCLEngine(Engine):
             self._buffers[name] = buf
         return buf
 
-    def _upload(self, name: str, array: np.ndarray):
-        cl = _cl()
+    def upload(self, name: str, array: np.ndarray):
+        cl = pyopencl()
         a = np.ascontiguousarray(array)
-        buf = self._buffer(name, a.nbytes)
+        buf = self.buffer(name, a.nbytes)
         cl.enqueue_copy(self.queue, buf, a)
         return buf
 
-    def _tile_angles(self, grid: PolarGrid, bytes_per_cell: int) -> int:
-        n_a, n_r = grid.shape
+    def tile_rows(self, n_a: int, n_r: int, bytes_per_cell: int) -> int:
+        """Angle rows of ``n_r`` ranges per launch that fit the device at ``bytes_per_cell``."""
         if self.max_tile_cells is not None:
             cells = self.max_tile_cells
         else:
@@ -246,6 +234,11 @@ class OpenCLEngine(Engine):
     # -- imaging ----------------------------------------------------------
     def _check_mode(self, mode: InterpMode) -> None:
         check_mode_runs_on(mode, self.name)
+
+    def _interpolate_beams(self, plan, beam, outs, out_windows, weighted):
+        """Beam sums to the output grid on the device (kernels/beam_interp.cl)."""
+        with self._lock:
+            return interpolate_beams_cl(self, plan, beam, outs, out_windows, weighted)
 
     def _beamform(self, inp, grid, mode, outs, range_window_m, scale: float) -> Sums:
         """Image one ping on the device (see :meth:`Engine.beamform`): one
@@ -279,24 +272,26 @@ class OpenCLEngine(Engine):
             inp.check_tables(grid)
         kernel = self._kernel(mode, outs, inp.n_samples, grid.shape[1], apodize, table)
         itemsize = np.dtype(real).itemsize
-        per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + (3 + apodize) * ("sums" in outs) + 5 * table)
-                    + 4 * ("sums" in outs) + 4 * table)
-        wg_max = kernel.get_work_group_info(_cl().kernel_work_group_info.WORK_GROUP_SIZE, self.device)
+        per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + (3 + apodize) * ("sums" in outs) + 5 * table
+                                + ("signature" in outs)) + 4 * ("sums" in outs) + 4 * table)
+        wg_max = kernel.get_work_group_info(pyopencl().kernel_work_group_info.WORK_GROUP_SIZE, self.device)
         local = max(1, min(self.local, wg_max))
         lanes = self.vec * local  # angles per tile
         th = np.deg2rad(grid.angles_deg)
-        args = [self._upload("data", inter), self._upload("chan", chan), np.int32(inp.n_channels),
-                self._upload("weights", np.asarray(inp.weights if apodize else np.ones(1), dtype=real))]
-        ranges = [self._upload("range", grid.ranges_m.astype(real)), self._upload("base_int", base_int),
-                  self._upload("base_frac", base_frac), self._upload("base_phase", base_phase),
+        args = [self.upload("data", inter), self.upload("chan", chan), np.int32(inp.n_channels),
+                self.upload("weights", np.asarray(inp.weights if apodize else np.ones(1), dtype=real))]
+        signature = self.upload("signature", channel_signature(inp.n_channels).astype(real))
+        ranges = [self.upload("range", grid.ranges_m.astype(real)), self.upload("base_int", base_int),
+                  self.upload("base_frac", base_frac), self.upload("base_phase", base_phase),
                   real(so[1]), real(so[2]), real(so[0] ** 2), real(np.dot(so, so)),
                   real(inp.samples_per_m), real(self._fresnel_range(o, inp.samples_per_m)),
                   real(2 * np.pi * inp.centre_frequency_hz / inp.sample_rate_hz)]
         return _Launch(kernel=kernel, local=local, lanes=lanes,
-                       rows=max(lanes, self._tile_angles(grid, per_cell) // lanes * lanes),
+                       rows=max(lanes, self.tile_rows(grid.shape[0], grid.shape[1], per_cell) // lanes * lanes),
                        window=cell_windows(inp, grid, mode, range_window_m),
                        angle_tab=np.stack([np.sin(th), np.cos(th)], axis=1).astype(real),
-                       cell_tabs=cell_tables(inp, grid, real) if table else None, head_args=args, range_args=ranges)
+                       cell_tabs=cell_tables(inp, grid, real) if table else None, head_args=args, range_args=ranges,
+                       signature=signature)
 
     def _run_tile(self, launch: "_Launch", out: "_Outputs", a0: int) -> None:
         """Launch the kernel on the angle rows ``a0 ..`` of one tile and read its results back."""
@@ -308,18 +303,18 @@ class OpenCLEngine(Engine):
         win = np.zeros((na_pad, 2), dtype=np.int32)
         win[:na] = launch.window[a0:a0 + na]
         tiles = launch_tiles(win, launch.lanes)
-        tab_bufs = [self._buffer("tab_" + k, 16) for k in TABLE_NAMES]
+        tab_bufs = [self.buffer("tab_" + k, 16) for k in TABLE_NAMES]
         if launch.cell_tabs is not None:
-            tab_bufs = [self._upload("tab_" + k, _padded_table(launch.cell_tabs[k], a0, na, na_pad, k))
+            tab_bufs = [self.upload("tab_" + k, _padded_table(launch.cell_tabs[k], a0, na, na_pad, k))
                         for k in TABLE_NAMES]
         out.clear(na_pad)
         if len(tiles):
             launch.kernel(self.queue, (len(tiles) * launch.local,), (launch.local,),
-                          *launch.head_args, self._upload("tiles", tiles),
-                          self._upload("angle_sin", tab[0]), self._upload("angle_cos", tab[1]),
-                          self._upload("win_first", np.ascontiguousarray(win[:, 0])),
-                          self._upload("win_end", np.ascontiguousarray(win[:, 1])),
-                          *launch.range_args, *out.buffer_args(), np.int32(na_pad), *tab_bufs)
+                          *launch.head_args, self.upload("tiles", tiles),
+                          self.upload("angle_sin", tab[0]), self.upload("angle_cos", tab[1]),
+                          self.upload("win_first", np.ascontiguousarray(win[:, 0])),
+                          self.upload("win_end", np.ascontiguousarray(win[:, 1])),
+                          *launch.range_args, *out.buffer_args(launch.signature), np.int32(na_pad), *tab_bufs)
         out.read(a0, na, na_pad)
 
 
@@ -337,12 +332,13 @@ class _Launch:
     cell_tabs: dict | None
     head_args: list
     range_args: list
+    signature: object
 
 
 class _Outputs:
     """The host arrays of one call's outputs and their device buffers (one tile of rows)."""
 
-    PLANES = {"intensity": 1, "cf": 1, "s": 2, "q": 1, "m": 1, "w": 1}
+    PLANES = {"intensity": 1, "cf": 1, "s": 2, "q": 1, "m": 1, "w": 1, "g": 1}
 
     def __init__(self, engine: "OpenCLEngine", grid: PolarGrid, outs: frozenset, apodize: bool, rows: int):
         self.engine, real = engine, engine.real
@@ -357,23 +353,26 @@ class _Outputs:
                              m=np.empty((n_a, n_r), dtype=np.int32))
             if apodize:
                 self.full["w"] = np.empty((n_a, n_r), dtype=real)
-        self.bufs = {name: engine._buffer("out_" + name, planes * rows * n_r * (4 if name == "m" else real().itemsize)
+        if "signature" in outs:
+            self.full["g"] = np.empty((n_a, n_r), dtype=real)
+        self.bufs = {name: engine.buffer("out_" + name, planes * rows * n_r * (4 if name == "m" else real().itemsize)
                                           if name in self.full else 16) for name, planes in self.PLANES.items()}
 
-    def buffer_args(self) -> list:
-        """The output buffers in the kernel's argument order."""
-        return [self.bufs[name] for name in self.PLANES]
+    def buffer_args(self, signature) -> list:
+        """The output buffers in the kernel's argument order, the channel signature before ``out_g``."""
+        b = self.bufs
+        return [b["intensity"], b["cf"], b["s"], b["q"], b["m"], b["w"], signature, b["g"]]
 
     def clear(self, na_pad: int) -> None:
         """Zero the outputs of a tile of ``na_pad`` angle rows (cells the kernel skips stay 0)."""
-        cl = _cl()
+        cl = pyopencl()
         for name, arr in self.full.items():
             cl.enqueue_fill_buffer(self.engine.queue, self.bufs[name], np.zeros(1, dtype=arr.dtype), 0,
                                    self.PLANES[name] * na_pad * self.n_ranges * arr.itemsize)
 
     def read(self, a0: int, na: int, na_pad: int) -> None:
         """Copy a tile's results into rows ``a0 .. a0 + na`` of the host arrays."""
-        cl, queue = _cl(), self.engine.queue
+        cl, queue = pyopencl(), self.engine.queue
         for name, arr in self.full.items():
             if name == "s":
                 host = np.empty((2, na_pad, self.n_ranges), dtype=arr.dtype)
@@ -385,7 +384,8 @@ class _Outputs:
     def sums(self) -> Sums:
         """The results as :class:`Sums`."""
         f = self.full
-        res = Sums(intensity=f.get("intensity"), cf=f.get("cf"), q=f.get("q"), m=f.get("m"), w=f.get("w"))
+        res = Sums(intensity=f.get("intensity"), cf=f.get("cf"), q=f.get("q"), m=f.get("m"), w=f.get("w"),
+                   signature=f.get("g"))
         if "s" in f:
             res.s = f["s"][0] + 1j * f["s"][1]
         return res

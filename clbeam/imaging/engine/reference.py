@@ -19,6 +19,7 @@ from clbeam.imaging.engine.common import (
     Sums,
     baseband,
     carrier_phase,
+    channel_signature,
     user_windows,
 )
 from clbeam.model.grid import PolarGrid
@@ -113,7 +114,8 @@ class ReferenceEngine(Engine):
         n_cells = grid.n_cells
         computed = _computed(grid, range_window_m)
         acc = {"s": np.zeros(n_cells, dtype=np.complex128), "q": np.zeros(n_cells), "m": np.zeros(n_cells, dtype=np.int32),
-               "w": np.zeros(n_cells)}
+               "w": np.zeros(n_cells), "g": np.zeros(n_cells)}
+        signature = channel_signature(inp.n_channels)
         weights = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
         paths = _CellPaths(inp, grid)
         for b0 in range(0, n_cells, BLOCK_CELLS):
@@ -128,6 +130,7 @@ class ReferenceEngine(Engine):
                 acc["q"][sl] += weights[n] * np.abs(v) ** 2
                 acc["m"][sl] += ok
                 acc["w"][sl] += weights[n] * ok
+                acc["g"][sl] += signature[n] * ok
         return _results(acc, outs, grid.shape, inp.weights is not None)
 
 
@@ -198,4 +201,6 @@ def _results(acc: dict, outs: frozenset, shape: tuple, weighted: bool) -> Sums:
         result.s, result.q, result.m = s.reshape(shape), q.reshape(shape), acc["m"].reshape(shape)
         if weighted:
             result.w = wsum.reshape(shape)
+    if "signature" in outs:
+        result.signature = acc["g"].reshape(shape)
     return result
