@@ -26,6 +26,8 @@ import numpy as np
 
 from clbeam.constants import PEAK_THRESHOLD
 from clbeam.imaging.engine import get_engine
+from clbeam.imaging.engine.beams import BeamSampling
+from clbeam.imaging.engine.errormodel import predicted_settings
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
 from clbeam.imaging.signal import upsample_analytic
@@ -34,12 +36,28 @@ from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
 
-#: (mode, upsample, precision) triples benchmarked by default
+@dataclass(frozen=True)
+class Case:
+    """One setting to benchmark: a mode, its upsampling, precision and beam sampling, or ``mode="auto"``
+    with an error budget (the setting the Imager picks for the scene)."""
+
+    mode: str
+    upsample: int = 1
+    precision: str = "float32"
+    beams: BeamSampling | None = None
+    budget_db: float | None = None
+
+
+#: the cases benchmarked by default: every mode directly, the upsampled ones, float64, beam-sampled ones and the
+#: settings ``--interp auto`` picks at -40 and -60 dB
 DEFAULT_CASES = (
-    ("nearest", 1, "float32"), ("linear", 1, "float32"), ("linear-bb", 1, "float32"),
-    ("cubic", 1, "float32"), ("lanczos4", 1, "float32"), ("lanczos8", 1, "float32"),
-    ("nearest", 4, "float32"), ("linear", 2, "float32"), ("linear", 4, "float32"), ("cubic", 2, "float32"),
-    ("linear-bb", 2, "float32"), ("cubic", 1, "float64"), ("lanczos8", 1, "float64"),
+    Case("nearest"), Case("linear"), Case("linear-bb"), Case("cubic"), Case("lanczos4"), Case("lanczos8"),
+    Case("nearest", 4), Case("linear", 2), Case("linear", 4), Case("cubic", 2), Case("linear-bb", 2),
+    Case("cubic", precision="float64"), Case("lanczos8", precision="float64"),
+    Case("cubic", beams=BeamSampling(1.5, 8)), Case("lanczos4", beams=BeamSampling(1.25, 12)),
+    Case("lanczos4", beams=BeamSampling(1.5, 8)), Case("cubic", 2, beams=BeamSampling(1.5, 12)),
+    Case("lanczos8", beams=BeamSampling(1.5, 12)), Case("lanczos8", beams=BeamSampling(2.0, 16)),
+    Case("auto", budget_db=-40.0), Case("auto", budget_db=-60.0),
 )
 
 
@@ -58,12 +76,16 @@ class BenchRow:
     peak_recall: float
     x_numpy: float = np.nan
     x_numba: float = np.nan
+    beams: str = ""
+    predicted_error_db: float = np.nan
+    budget_db: float = np.nan
 
     @property
     def label(self) -> str:
-        """``mode`` with its upsampling and precision when not the default."""
-        s = self.mode + (f" x{self.upsample}" if self.upsample > 1 else "")
-        return s + (" f64" if self.precision == "float64" else "")
+        """``mode`` with its upsampling, beams and precision when not the default (``auto -40 dB: …``)."""
+        s = self.mode + (f" x{self.upsample}" if self.upsample > 1 else "") + (f" beams {self.beams}" if self.beams else "")
+        s += " f64" if self.precision == "float64" else ""
+        return f"auto {self.budget_db:g} dB: {s}" if np.isfinite(self.budget_db) else s
 
 
 @dataclass
@@ -129,7 +151,7 @@ def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGr
         Timing grid (default: the paper's).
     accuracy_grid : PolarGrid
         Window for the error measures (default :func:`accuracy_window`).
-    cases : iterable of (mode, upsample, precision)
+    cases : iterable of Case
         What to measure.
     repeats : int
         Timed runs per case (best kept).
@@ -146,16 +168,19 @@ def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGr
     say("NumPy reference and numba baselines")
     numpy_rate, numba_rate = _baseline_rates(inputs, grid, reference_stride, default_mode, repeats)
     rows, engines = [], {}
-    for mode, up, precision in cases:
-        eng = engines.get(precision)
+    settings = inputs.predicted()
+    for case in cases:
+        eng = engines.get(case.precision)
         if eng is None:
-            eng = engines[precision] = get_engine("opencl", precision=precision)
-        say(f"{mode} x{up} {precision}")
-        rate, row = _mode_row(eng, inputs, grid, accuracy_grid, exact, (mode, up, precision), repeats, threshold)
-        rows.append(BenchRow(*row, rate / numpy_rate, rate / numba_rate))
+            eng = engines[case.precision] = get_engine("opencl", precision=case.precision)
+        case = inputs.resolve(case, eng)
+        say(f"{case.mode} x{case.upsample} {case.precision}" + (f" beams {_beams_label(case.beams)}" if case.beams else ""))
+        rate, row = _mode_row(eng, inputs, grid, accuracy_grid, exact, case, repeats, threshold)
+        rows.append(BenchRow(*row, rate / numpy_rate, rate / numba_rate, beams=_beams_label(case.beams),
+                             predicted_error_db=_predicted(settings, case), budget_db=case.budget_db or np.nan))
     say("whole ping and skipping")
     eng = engines.get("float32") or get_engine("opencl")
-    whole, skipping = _whole_ping(eng, ping, grid, default_mode, repeats)
+    whole, skipping = _whole_ping(eng, ping, grid, repeats)
     setup = {"grid": f"{grid.shape[1]} ranges x {grid.shape[0]} angles", "channels": inp1.n_channels,
              "samples": inp1.n_samples, "sample_rate_hz": inp1.sample_rate_hz, "device": getattr(eng, "label", "?"),
              "accuracy_window": f"{accuracy_grid.shape[1]} ranges x {accuracy_grid.shape[0]} angles"}
@@ -169,6 +194,23 @@ class _Inputs:
         self.ping, self.grid = ping, grid
         self.reference = get_engine("reference")
         self._inputs = {}
+
+    def predicted(self) -> list:
+        """The error model's settings for this scene and grid (:func:`~clbeam.imaging.engine.errormodel.predicted_settings`)."""
+        inp = self.get(1)
+        across = np.linalg.norm(self.ping.element_pos_m[:, 1:] - self.ping.source_pos_m[1:], axis=1)
+        return predicted_settings(across, inp.band_hz, inp.sample_rate_hz, inp.sound_speed_m_s,
+                                  n_angles=self.grid.shape[0], n_ranges=self.grid.shape[1],
+                                  angle_span_rad=float(np.deg2rad(np.ptp(self.grid.angles_deg))),
+                                  n_samples=inp.n_samples)
+
+    def resolve(self, case: Case, engine) -> Case:
+        """An ``auto`` case as the setting an Imager with its budget picks for this ping."""
+        if case.mode != "auto":
+            return case
+        imager = Imager(self.grid, ImagingOptions(max_error_db=case.budget_db, use_svp=False), engine=engine)
+        _, s = imager._prepare(self.ping)
+        return Case(s.interp, s.upsample, case.precision, s.beams, case.budget_db)
 
     def get(self, upsample: int):
         if upsample not in self._inputs:
@@ -194,30 +236,69 @@ def _baseline_rates(inputs: _Inputs, grid: PolarGrid, stride: int, mode: str, re
     return numpy_rate, grid.n_cells * inp1.n_channels / t_nb
 
 
-def _mode_row(eng, inputs: _Inputs, grid: PolarGrid, accuracy_grid: PolarGrid, exact, case: tuple, repeats: int,
+def _mode_row(eng, inputs: _Inputs, grid: PolarGrid, accuracy_grid: PolarGrid, exact, case: Case, repeats: int,
               threshold: float) -> tuple:
-    """Rate (cells x channels / s) and the measured fields of one case's :class:`BenchRow`."""
-    mode, up, precision = case
-    inp = inputs.get(up)
+    """Rate (cells x channels / s) and the measured fields of one case's :class:`BenchRow`.
+
+    A beam-sampled case is measured on the full grid and cropped to the
+    accuracy window (its beams are those of the full grid), a direct one on
+    the window itself (every cell is computed alike)."""
+    inp = inputs.get(case.upsample)
     outputs = ("intensity", "cf")
-    eng.beamform(inp, grid, interp=mode, outputs=outputs)  # build
-    t = best_time(lambda: eng.beamform(inp, grid, interp=mode, outputs=outputs), repeats)
-    if up > 1:  # the FFT upsampling is part of the mode's cost
-        t += best_time(lambda: upsample_analytic(inputs.get(1).data, up), 1)
-    acc = eng.beamform(inp, accuracy_grid, interp=mode, outputs=outputs)
+
+    def run(g):
+        return eng.beamform(inp, g, interp=case.mode, outputs=outputs, beams=case.beams)
+
+    run(grid)  # build
+    t = best_time(lambda: run(grid), repeats)
+    if case.upsample > 1:  # the FFT upsampling is part of the mode's cost
+        t += best_time(lambda: upsample_analytic(inputs.get(1).data, case.upsample), 1)
+    acc = _crop(run(grid), grid, accuracy_grid) if case.beams is not None and _is_subgrid(accuracy_grid, grid) \
+        else run(accuracy_grid)
     prec, rec = peak_agreement(acc.cf, exact.cf, threshold)
     rate = grid.n_cells * inp.n_channels / t
-    return rate, (mode, up, precision, 1e3 * t, rate, intensity_error_db(acc.intensity.astype(np.float64), exact.intensity),
+    return rate, (case.mode, case.upsample, case.precision, 1e3 * t, rate,
+                  intensity_error_db(acc.intensity.astype(np.float64), exact.intensity),
                   float(np.max(np.abs(acc.cf - exact.cf))), prec, rec)
 
 
-def _whole_ping(eng, ping, grid: PolarGrid, mode: str, repeats: int) -> tuple:
-    """Time per ping of the whole chain (raw to peaks) by stage, and with each skipping option."""
+def _is_subgrid(window: PolarGrid, grid: PolarGrid) -> bool:
+    """True when the window's cells are a block of the grid's."""
+    ia = np.searchsorted(grid.angles_deg, window.angles_deg[0] - 1e-9)
+    ir = np.searchsorted(grid.ranges_m, window.ranges_m[0] - 1e-9)
+    a, r = grid.angles_deg[ia:ia + window.shape[0]], grid.ranges_m[ir:ir + window.shape[1]]
+    return (a.size == window.shape[0] and r.size == window.shape[1] and np.allclose(a, window.angles_deg, atol=1e-9)
+            and np.allclose(r, window.ranges_m, atol=1e-9))
+
+
+def _crop(sums, grid: PolarGrid, window: PolarGrid):
+    """The window's cells of an image of ``grid`` (the window's nodes are nodes of the grid)."""
+    ia = np.searchsorted(grid.angles_deg, window.angles_deg[0] - 1e-9)
+    ir = np.searchsorted(grid.ranges_m, window.ranges_m[0] - 1e-9)
+    rows, cols = slice(ia, ia + window.shape[0]), slice(ir, ir + window.shape[1])
+    return type(sums)(intensity=sums.intensity[rows, cols], cf=sums.cf[rows, cols])
+
+
+def _beams_label(beams) -> str:
+    return f"x{beams.oversampling:g}/{beams.taps}" if beams is not None else ""
+
+
+def _predicted(settings: list, case: Case) -> float:
+    """The error model's prediction for a case (dB), NaN for a mode it does not cover."""
+    for s in settings:
+        if s.interp == case.mode and s.upsample == case.upsample and s.beams == case.beams:
+            return s.error_db
+    return np.nan
+
+
+def _whole_ping(eng, ping, grid: PolarGrid, repeats: int) -> tuple:
+    """Time per ping of the whole chain (raw to peaks) by stage with the default setting (``--interp
+    auto`` within the default budget), and with each skipping option."""
     whole, skipping = {}, []
     for label, opts in (
-        ("full grid, intensity + CF", ImagingOptions(interp=mode)),
-        ("intensity only", ImagingOptions(interp=mode, outputs=("intensity",))),
-        ("seabed band -5/+40 m", ImagingOptions(interp=mode, seabed_band_m=(5.0, 40.0))),
+        ("full grid, intensity + CF", ImagingOptions()),
+        ("intensity only", ImagingOptions(outputs=("intensity",))),
+        ("seabed band -5/+40 m", ImagingOptions(seabed_band_m=(5.0, 40.0))),
     ):
         imager = Imager(grid, opts, engine=eng)
         imager.image(ping)
@@ -232,11 +313,11 @@ def _whole_ping(eng, ping, grid: PolarGrid, mode: str, repeats: int) -> tuple:
 
 def markdown_table(result: BenchResult) -> str:
     """The result as Markdown tables."""
-    lines = ["| mode | ms/ping | cells·ch/s | intensity error (dB) | max abs ΔCF | peak precision / recall "
-             "| × NumPy | × numba |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    lines = ["| setting | ms/ping | cells·ch/s | intensity error (dB) | predicted (dB) | max abs ΔCF "
+             "| peak precision / recall | × NumPy | × numba |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in result.rows:
         lines.append(f"| {r.label} | {r.ms_per_ping:.0f} | {r.cells_ch_per_s:.2e} | {r.intensity_error_db:.1f} "
-                     f"| {r.max_abs_dcf:.3f} | {r.peak_precision:.2f} / {r.peak_recall:.2f} "
+                     f"| {r.predicted_error_db:.1f} | {r.max_abs_dcf:.3f} | {r.peak_precision:.2f} / {r.peak_recall:.2f} "
                      f"| {r.x_numpy:.0f} | {r.x_numba:.1f} |")
     lines += ["", f"NumPy float64 reference: {result.numpy_cells_ch_per_s:.2e} cells·ch/s; "
                   f"numba parallel linear: {result.numba_cells_ch_per_s:.2e} cells·ch/s.", "",
@@ -277,13 +358,18 @@ def plot_pareto(result: BenchResult, path) -> None:
             front.append((t, e))
             best = e
     for t, e, label in pts:
-        ax.scatter(t, e, s=30, color="tab:blue", zorder=3)
+        if label.startswith("auto"):  # the same point as a beam row: a star and the budget below it
+            ax.scatter(t, e, s=90, marker="*", color="tab:red", zorder=4)
+            ax.annotate(label.split(":")[0], (t, e), textcoords="offset points", xytext=(4, -11), fontsize=7,
+                        color="tab:red")
+            continue
+        ax.scatter(t, e, s=30, color="tab:green" if "beams" in label else "tab:blue", zorder=3)
         ax.annotate(label, (t, e), textcoords="offset points", xytext=(4, 3), fontsize=7)
     ax.plot(*zip(*front), color="tab:orange", lw=1.5, label="Pareto front", zorder=2)
     ax.set_xscale("log")
-    ax.set_xlabel("time per ping on the paper grid (ms, log)")
+    ax.set_xlabel("time per ping on the paper grid (ms, log); green: beam-sampled")
     ax.set_ylabel("intensity error vs exact (dB)")
-    ax.set_title("clbeam interpolation modes: run time against error")
+    ax.set_title("clbeam imaging settings: run time against error")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(loc="upper right")
     fig.tight_layout()

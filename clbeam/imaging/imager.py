@@ -282,7 +282,11 @@ class Imager:
 
     def beamform_input(self, ping: Ping) -> BeamformInput:
         """Everything the engine needs for ``ping``: analytic channels and
-        roll/heave-corrected offsets from the grid centre."""
+        roll/heave-corrected offsets from the grid centre (upsampled as the setting says)."""
+        return self._prepare(ping)[0]
+
+    def _prepare(self, ping: Ping) -> tuple[BeamformInput, Setting]:
+        """The engine's input for ``ping`` and the setting it is imaged with."""
         check_positions("element positions", ping.element_pos_m)
         check_positions("source position", ping.source_pos_m)
         data, used = self.analytic_channels(ping)
@@ -290,7 +294,7 @@ class Imager:
         source = to_earth_frame(ping.source_pos_m, roll_deg=ping.roll_deg, heave_m=ping.heave_m)
         centre = np.r_[0.0, self.grid.centre(tuple(ping.source_pos_m[1:]))]
         band = pulse_band_hz(ping.pulse, ping.sample_rate_hz)
-        setting = self.setting(elements - centre, band, ping, data.shape[1])
+        setting = self.setting(ping.element_pos_m[used] - centre, band, ping, data.shape[1])
         fs = ping.sample_rate_hz
         if setting.upsample > 1:
             data = upsample_analytic(data, setting.upsample)
@@ -303,11 +307,23 @@ class Imager:
             sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
             element_offsets_m=elements - centre, source_offset_m=source - centre,
             centre_frequency_hz=fc or 0.0, weights=weights, band_hz=band)
-        return self._with_tables(ping, inp, float(centre[2]))
+        return self._with_tables(ping, inp, float(centre[2])), setting
 
     def setting(self, offsets_m: np.ndarray, band_hz, ping: Ping, n_samples: int) -> Setting:
         """Mode, upsampling and beam sampling for a ping of this array, band and sampling
-        (:func:`clbeam.imaging.engine.errormodel.choose_setting`; cached, logged once)."""
+        (:func:`clbeam.imaging.engine.errormodel.choose_setting`; cached, logged once).
+
+        Parameters
+        ----------
+        offsets_m : numpy.ndarray
+            ``(n_channel, 3)`` positions (m) of the used elements from the grid centre, vessel frame.
+        band_hz : (float, float) or None
+            Pulse band (Hz); ``None``: up to half the sample rate.
+        ping : Ping
+            The ping (sample rate, sound speed).
+        n_samples : int
+            Samples per channel.
+        """
         opts = self.options
         forced = None if opts.interp == "auto" else opts.interp
         # a forced mode images every cell directly unless beams are asked for too: it keeps its own results
@@ -317,7 +333,8 @@ class Imager:
         band = band_hz or (0.0, 0.5 * ping.sample_rate_hz)
         c = opts.sound_speed_m_s or ping.sound_speed_m_s
         across = np.linalg.norm(offsets_m[:, 1:], axis=1)
-        key = (tuple(band), ping.sample_rate_hz, round(c, 3), across.round(6).tobytes(), n_samples)
+        # vessel-frame offsets (roll does not change their lengths) to the mm, speed to 1 m/s: one setting a line
+        key = (tuple(band), ping.sample_rate_hz, round(c), across.round(3).tobytes(), n_samples)
         setting = self._settings.get(key)
         if setting is None:
             span = float(np.deg2rad(np.ptp(self.grid.angles_deg)))
@@ -382,7 +399,7 @@ class Imager:
         """
         t = {}
         t_start = time.perf_counter()
-        inp = self.beamform_input(ping)
+        inp, setting = self._prepare(ping)
         t["compress_s"] = time.perf_counter() - t_start
         if inp.n_channels == 0:
             log.warning("ping %d: no usable channel; the image is empty", ping.index)
@@ -391,7 +408,6 @@ class Imager:
         check_grid_reaches_record(inp, self.grid)
         t0 = time.perf_counter()
         outs = set(self.options.outputs)
-        setting = self.setting(inp.element_offsets_m, inp.band_hz, ping, ping.n_samples)
         sums = self.engine.beamform(inp, self.grid, interp=setting.interp,
                                     outputs=outs | {"intensity"} if "cf" in outs else outs,
                                     range_window_m=range_window_m, beams=setting.beams)

@@ -78,6 +78,11 @@ def test_reference_backend_gives_the_same_image(ping_file, tmp_path):
     (["image", "{pings}", "-o", "{pings}"], "is the input file"),
     (["image", "{pings}", "-o", "{tmp}"], "is an existing folder"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--range-res", "1e-7"], "exceeds 2e+09 cells"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--max-error-db", "3"], "must be a negative number of dB"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--max-error-db", "-100"], "no setting reaches -100 dB"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--beams", "wide"], "--beams must be auto, off or K[:TAPS]"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--beams", "0.5:8"], "beam oversampling must be within 1-16"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--beams", "1.5:7"], "beam taps must be an even integer"),
 ])
 def test_bad_input_exits_2_with_one_line(ping_file, tmp_path, capsys, argv, message):
     argv = [a.format(pings=ping_file, tmp=tmp_path) for a in argv]

@@ -5,6 +5,7 @@ import pytest
 from scenes import point_ping, polar_point
 
 from clbeam.evaluation.bench import (
+    Case,
     intensity_error_db,
     markdown_table,
     peak_agreement,
@@ -41,10 +42,13 @@ def test_tiny_benchmark_run_writes_table_csv_and_plot(tmp_path):
     grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=1, max_range_m=72, angles_deg=(-40, 40))
     window = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.2, min_range_m=55, max_range_m=65, angles_deg=(15, 25))
     res = run_benchmark(ping, grid=grid, accuracy_grid=window, repeats=1, reference_stride=20,
-                        cases=(("linear", 1, "float32"), ("lanczos8", 1, "float32")))
-    lin, lz = res.rows
+                        cases=(Case("linear"), Case("lanczos8"), Case("auto", budget_db=-40.0)))
+    lin, lz, auto = res.rows
     # Lanczos-8 is far closer to the exact band-limited interpolator than linear
     assert lz.intensity_error_db < lin.intensity_error_db - 20
+    # the setting --interp auto picks meets its budget, within the error model's 3 dB
+    assert auto.label.startswith("auto -40 dB: ") and auto.intensity_error_db <= -40.0 + 3
+    assert np.isfinite(lin.predicted_error_db) and lin.intensity_error_db <= lin.predicted_error_db + 3
     assert lin.cells_ch_per_s == pytest.approx(grid.n_cells * 64 / (lin.ms_per_ping / 1e3), rel=1e-9)
     paths = write_report(res, tmp_path)
     assert "| linear |" in markdown_table(res) and paths["plot"].stat().st_size > 10_000
