@@ -6,6 +6,8 @@ from clbeam.cli.options import require_extra, stage_printer
 
 NAME = "bench"
 HELP = "run time against error of every interpolation mode; table and Pareto plot"
+#: pings of the file ``clbeam image`` is timed on (against a one-ping file)
+COMMAND_PINGS = 4
 
 
 def add_arguments(p) -> None:
@@ -23,24 +25,30 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     """Simulate one ping, time and score every mode, write the table and the plot."""
     require_extra("numba", "bench", "bench")
+    import tempfile
     from pathlib import Path
 
     from clbeam.evaluation.bench import (
         accuracy_window,
         markdown_table,
         run_benchmark,
+        time_image_command,
         write_report,
     )
     from clbeam.io.pingfile import pings_from_dataset
     from clbeam.sim import load_scene, simulate
 
     say = stage_printer(args)
-    say(f"simulating one ping of '{args.scene}'")
-    ping = pings_from_dataset(simulate(load_scene(args.scene, pings=1, max_range_m=args.max_range)), args.scene).ping(0)
+    say(f"simulating {COMMAND_PINGS} pings of '{args.scene}'")
+    dataset = simulate(load_scene(args.scene, pings=COMMAND_PINGS, max_range_m=args.max_range))
+    ping = pings_from_dataset(dataset, args.scene).ping(0)
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
     window = accuracy_window(tuple(args.accuracy_window[:2]), tuple(args.accuracy_window[2:]))
     res = run_benchmark(ping, accuracy_grid=window, repeats=args.repeats, progress=say)
+    say(f"clbeam image on 1 and {COMMAND_PINGS} pings, timed as commands")
+    with tempfile.TemporaryDirectory(dir=out) as work:
+        res.command = time_image_command(dataset, work, pings=(1, COMMAND_PINGS))
     paths = write_report(res, out)
     if not args.quiet:
         print(markdown_table(res))

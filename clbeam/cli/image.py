@@ -82,7 +82,7 @@ def run(args) -> int:
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         t0 = time.perf_counter()
         out = Path(args.output)
-        writer = ImageWriter(out, grid, len(pings), variables, attrs)
+        writer = ImageWriter(out, grid, len(pings), variables, attrs, background=True)
         try:
             with writer:
                 peaks = _image_pings(pings, imager, writer, stack, "s_r" in variables, args.quiet)

@@ -104,6 +104,9 @@ def add_imaging_options(p: argparse.ArgumentParser) -> None:
                         "(--seabed-depth, else picked per ping)")
     g.add_argument("--mlh", action="store_true",
                    help="merge the coherence peaks on one main-lobe arc into one detection (lobe-fitted position)")
+    g.add_argument("--no-refine", action="store_true",
+                   help="report coherence peaks at their grid cells (default: each moved to its echo's intensity "
+                        "maximum from the exact sums, one row per echo, the cell in cell_* columns)")
     g.add_argument("--no-calibration", action="store_true",
                    help="ignore the file's element_gain_db / element_phase_deg (default: remove them)")
 
@@ -120,7 +123,7 @@ def options_from_args(args, **overrides):
                   seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
                   seabed_depth_m=args.seabed_depth, apodization=args.apodization,
                   calibrate=not args.no_calibration, mlh=args.mlh, use_svp=not args.isospeed,
-                  sediment_speed_m_s=args.sediment_speed)
+                  sediment_speed_m_s=args.sediment_speed, refine_peaks=not args.no_refine)
     return ImagingOptions(**{**fields, **overrides})
 
 

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import csv
 import logging
+import subprocess
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -98,6 +100,7 @@ class BenchResult:
     whole_ping_ms: dict
     skipping: list
     setup: dict = field(default_factory=dict)
+    command: dict = field(default_factory=dict)
 
 
 def paper_grid() -> PolarGrid:
@@ -311,6 +314,26 @@ def _whole_ping(eng, ping, grid: PolarGrid, repeats: int) -> tuple:
     return whole, skipping
 
 
+def time_image_command(dataset, work_dir, pings=(1, 3)) -> dict:
+    """``clbeam image --peaks`` timed as a whole (a new process, start-up and file writing included) on
+    ping files of the first ``pings[0]`` and ``pings[1]`` pings of ``dataset``: the time per ping is
+    the difference over the extra pings, the start-up what is left of the shorter run (s)."""
+    from clbeam.io.pingwrite import write_ping_file
+
+    work = Path(work_dir)
+    work.mkdir(parents=True, exist_ok=True)
+    totals = []
+    for n in pings:
+        src = write_ping_file(dataset.isel(ping=slice(0, n)), work / f"pings{n}.nc")
+        cmd = [sys.executable, "-m", "clbeam", "image", str(src), "-o", str(work / f"images{n}.nc"),
+               "--peaks", str(work / f"peaks{n}.csv"), "-q"]
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True)
+        totals.append(time.perf_counter() - t0)
+    per_ping = (totals[1] - totals[0]) / (pings[1] - pings[0])
+    return {"pings": pings[1], "total_s": totals[1], "s_per_ping": per_ping, "start_up_s": totals[0] - per_ping * pings[0]}
+
+
 def markdown_table(result: BenchResult) -> str:
     """The result as Markdown tables."""
     lines = ["| setting | ms/ping | cells·ch/s | intensity error (dB) | predicted (dB) | max abs ΔCF "
@@ -326,6 +349,10 @@ def markdown_table(result: BenchResult) -> str:
     lines += ["", "Whole ping (raw → intensity, CF, peaks), ms: "
               + ", ".join(f"{k.replace('_s', '')} {v:.0f}" for k, v in result.whole_ping_ms.items()), "",
               "Set-up: " + ", ".join(f"{k} {v}" for k, v in result.setup.items())]
+    if result.command:
+        c = result.command
+        lines += ["", f"`clbeam image --peaks` on a {c['pings']}-ping file (a new process, image file written): "
+                      f"{c['total_s']:.2f} s, {c['s_per_ping']:.2f} s per ping, start-up {c['start_up_s']:.2f} s"]
     return "\n".join(lines) + "\n"
 
 

@@ -4,10 +4,13 @@ engines, apodization, Hann smoothing, coherence peaks, MLH and stacking,
 and the :class:`Imager` that runs them in order.  Imports :mod:`clbeam.io`
 and :mod:`clbeam.model` below it, nothing above."""
 
-from clbeam.imaging.engine import INTERP_MODES, BeamformInput, Sums, get_engine
-from clbeam.imaging.imager import Imager, ImagingOptions, PingImage
-from clbeam.imaging.peaks import PingContext, peak_rows, peaks_from_images
-from clbeam.model.grid import PolarGrid
+from clbeam.lazy import lazy_exports
 
-__all__ = ["INTERP_MODES", "BeamformInput", "Imager", "ImagingOptions", "PingContext", "PingImage", "PolarGrid",
-           "Sums", "get_engine", "peak_rows", "peaks_from_images"]
+_EXPORTS = {
+    "clbeam.imaging.engine": ("INTERP_MODES", "BeamformInput", "Sums", "get_engine"),
+    "clbeam.imaging.imager": ("Imager", "ImagingOptions", "PingImage"),
+    "clbeam.imaging.peaks": ("PingContext", "peak_rows", "peaks_from_images"),
+    "clbeam.model.grid": ("PolarGrid",),
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -42,6 +42,7 @@ from clbeam.imaging.postprocess import hann_smooth
 from clbeam.imaging.raytrace import travel_time_tables
 from clbeam.imaging.seabed_band import pick_seabed_depth_m, seabed_window_m
 from clbeam.imaging.signal import compress_analytic, pulse_band_hz, upsample_analytic
+from clbeam.imaging.subcell import subcell_peaks
 from clbeam.model.grid import PolarGrid
 from clbeam.model.ping import Ping
 from clbeam.model.svp import SoundSpeedProfile
@@ -107,6 +108,9 @@ class ImagingOptions:
         on the beams the aperture resolves, interpolated to the grid's
         angles; ``"auto"``: chosen by the budget (off with a forced mode,
         which then images every cell as before); ``None`` computes every cell directly.
+    refine_peaks : bool
+        Move every coherence peak to its echo's intensity maximum from the exact
+        sums, one row per echo (:mod:`clbeam.imaging.subcell`; not with ``mlh``).
     """
 
     interp: str = "auto"
@@ -124,6 +128,7 @@ class ImagingOptions:
     mlh: bool = False
     beams: BeamSampling | str | None = "auto"
     max_error_db: float = DEFAULT_MAX_ERROR_DB
+    refine_peaks: bool = True
 
     def __post_init__(self):
         if self.interp != "auto":
@@ -328,6 +333,9 @@ class Imager:
         forced = None if opts.interp == "auto" else opts.interp
         # a forced mode images every cell directly unless beams are asked for too: it keeps its own results
         beams = opts.beams if not (forced and opts.beams == "auto") else None
+        if opts.sediment_speed_m_s is not None and beams == "auto":
+            # rays refract at the seabed: the sums jump there in angle and are not band-limited (docs/beams.md)
+            beams = None
         if len(offsets_m) == 0:  # no usable channel: the image is empty whatever the setting
             return Setting(forced or "cubic", opts.upsample or 1, None, math.nan, math.nan)
         band = band_hz or (0.0, 0.5 * ping.sample_rate_hz)
@@ -417,7 +425,8 @@ class Imager:
         cf_smooth = peaks = None
         if sums.cf is not None:
             cf_smooth = hann_smooth(sums.cf)
-            peaks = self.peak_rows(context, cf_smooth, sums.intensity)
+            refine = self._refiner(inp, setting, cf_smooth, sums.intensity)
+            peaks = self.peak_rows(context, cf_smooth, sums.intensity, refine=refine)
         t["postprocess_s"] = time.perf_counter() - t0
         return PingImage(ping=ping.index, grid=self.grid,
                          intensity=sums.intensity if "intensity" in outs else None, cf=sums.cf, cf_smooth=cf_smooth,
@@ -434,10 +443,20 @@ class Imager:
             depth = float(self.grid.ranges_m[0])
         return seabed_window_m(self.grid, depth, self.options.seabed_band_m)
 
-    def peak_rows(self, context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None) -> list:
-        """Rows of the peaks table for one ping (SPEC §3 step 7) with this imager's threshold and MLH option."""
+    def peak_rows(self, context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None, *,
+                  refine=None) -> list:
+        """Rows of the peaks table for one ping (SPEC §3 step 7) with this imager's threshold and MLH
+        option (refined with ``refine``, see :func:`clbeam.imaging.peaks.peak_rows`)."""
         return peak_rows(context, cf_smooth, intensity, self.grid, threshold=self.options.threshold,
-                         mlh=self.options.mlh)
+                         mlh=self.options.mlh, refine=refine)
+
+    def _refiner(self, inp: BeamformInput, setting: Setting, cf_smooth: np.ndarray, intensity: np.ndarray | None):
+        """``refine(peaks)`` for this ping's peaks, or ``None`` when refinement is off (or MLH is on)."""
+        if not self.options.refine_peaks or self.options.mlh or inp.n_channels == 0:
+            return None
+        mode = interp_mode(setting.interp)
+        return functools.partial(subcell_peaks, self.engine, inp, self.grid, mode=mode, cf_smooth=cf_smooth, intensity=intensity,
+                                 threshold=self.options.threshold)
 
     def peak_row_builder(self, img: PingImage):
         """``f(cf_smooth, intensity) -> rows`` for another image of ``img``'s ping (e.g. a stack)."""

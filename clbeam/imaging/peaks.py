@@ -91,7 +91,8 @@ class PingContext:
 
 
 def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None, grid: PolarGrid, *,
-              threshold: float = PEAK_THRESHOLD, mlh: bool = False, position: str = "lobe", **mlh_options) -> list[dict]:
+              threshold: float = PEAK_THRESHOLD, mlh: bool = False, position: str = "lobe", refine=None,
+              **mlh_options) -> list[dict]:
     """Rows of the peaks table for one ping (SPEC §3 step 7).
 
     Parameters
@@ -113,6 +114,11 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         carry :data:`clbeam.imaging.mlh.MLH_COLUMNS`.
     position : {"lobe", "peak"}
         With ``mlh``: report the lobe fit or the sub-cell maximum.
+    refine : callable, optional
+        ``refine(peaks) -> RefinedPeaks`` (:func:`clbeam.imaging.subcell.subcell_peaks`
+        with the ping's data): rows at the refined points, one per echo, the grid
+        cell's range, angle and smoothed CF in ``cell_range_m``, ``cell_angle_deg``,
+        ``cell_cf`` and the grid peaks merged in ``cell_peaks`` (not with ``mlh``).
     **mlh_options
         With ``mlh``: overrides of :func:`~clbeam.imaging.mlh.suppress_main_lobe_highlights`.
 
@@ -129,9 +135,23 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
                    **mlh_options}
         dets = suppress_main_lobe_highlights(peaks, cf_smooth, grid, centre_yz_m=context.centre_yz_m, **options)
         return detection_rows(dets, context.index, intensity, context.centre_yz_m, nav, position=position)
+    if refine is not None:
+        return _refined_rows(context, refine(peaks), cf_smooth, grid)
     return [peak_row(context.index, grid.ranges_m[ir], grid.angles_deg[ia], context.centre_yz_m, cf_smooth[ia, ir],
                      float(intensity[ia, ir]) if intensity is not None else np.nan, nav)
             for ia, ir in peaks]
+
+
+def _refined_rows(context: PingContext, refined, cf_smooth: np.ndarray, grid: PolarGrid) -> list[dict]:
+    """Peak rows at refined points, with the grid cell each came from."""
+    rows = []
+    for k, (ia, ir) in enumerate(refined.cell):
+        row = peak_row(context.index, refined.range_m[k], refined.angle_deg[k], context.centre_yz_m,
+                       refined.cf_smooth[k], refined.intensity[k], context.navigation)
+        row.update(cell_range_m=float(grid.ranges_m[ir]), cell_angle_deg=float(grid.angles_deg[ia]),
+                   cell_cf=float(cf_smooth[ia, ir]), cell_peaks=int(refined.n_cells[k]))
+        rows.append(row)
+    return rows
 
 
 def _value(ds, name: str, i: int, default=None):

@@ -4,8 +4,6 @@
 from __future__ import annotations
 
 import numpy as np
-from skimage.measure import label
-from skimage.morphology import local_maxima
 
 from clbeam.constants import PEAK_THRESHOLD
 from clbeam.errors import OptionError, require
@@ -71,6 +69,45 @@ def coherence_peaks(cf_smooth: np.ndarray, threshold: float = PEAK_THRESHOLD) ->
     require(img.ndim == 2, OptionError, f"coherence peaks need a 2-D (angle, range) image, got shape {img.shape}")
     if img.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
+    peaks = _isolated_maxima(img, threshold)
+    if peaks is None:  # a candidate ties with a neighbour: plateaus need the connected-component search
+        peaks = _plateau_maxima(img, threshold)
+    return peaks[np.argsort(-img[peaks[:, 0], peaks[:, 1]], kind="stable")]
+
+
+#: the 8 neighbours' (angle, range) offsets
+_NEIGHBOURS = [(da, dr) for da in (-1, 0, 1) for dr in (-1, 0, 1) if da or dr]
+
+
+def _isolated_maxima(img: np.ndarray, threshold: float) -> np.ndarray | None:
+    """Cells above ``threshold`` strictly above their 8 neighbours, in raster order;
+    ``None`` when a cell not below any neighbour equals one (a plateau).
+
+    Looks only at the cells above the threshold: a few per cent of a
+    sonar image, so this costs a fraction of a full-image search.
+    """
+    n_a, n_r = img.shape
+    flat = np.flatnonzero(img > threshold)
+    a, r = np.divmod(flat, n_r)
+    value = img.ravel()[flat]
+    not_lower = np.ones(flat.size, dtype=bool)
+    ties = np.zeros(flat.size, dtype=bool)
+    for da, dr in _NEIGHBOURS:
+        na, nr = a + da, r + dr
+        inside = (na >= 0) & (na < n_a) & (nr >= 0) & (nr < n_r)
+        neighbour = np.where(inside, img[np.clip(na, 0, n_a - 1), np.clip(nr, 0, n_r - 1)], -np.inf)
+        not_lower &= neighbour <= value
+        ties |= neighbour == value
+    if np.any(not_lower & ties):
+        return None
+    return np.stack([a[not_lower], r[not_lower]], axis=1).astype(np.int64)
+
+
+def _plateau_maxima(img: np.ndarray, threshold: float) -> np.ndarray:
+    """Regional maxima above ``threshold`` with plateaus, one cell per plateau (scikit-image)."""
+    from skimage.measure import label
+    from skimage.morphology import local_maxima
+
     maxima = local_maxima(img, connectivity=2, allow_borders=True) & (img > threshold)
     labels, n = label(maxima, connectivity=2, return_num=True)
     if n == 0:
@@ -83,8 +120,7 @@ def coherence_peaks(cf_smooth: np.ndarray, threshold: float = PEAK_THRESHOLD) ->
     dist = (idx[:, 0] - cy[lab]) ** 2 + (idx[:, 1] - cx[lab]) ** 2
     order = np.lexsort((dist, lab))
     first = order[np.r_[True, lab[order][1:] != lab[order][:-1]]]
-    peaks = idx[first]
-    return peaks[np.argsort(-img[peaks[:, 0], peaks[:, 1]], kind="stable")]
+    return idx[first]
 
 
 def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float, intensity: float,

@@ -2,10 +2,13 @@
 formats (one schema, :mod:`clbeam.io.schema`), peak tables, figures, SEG-Y
 and the survey store.  Imports only :mod:`clbeam.model`, constants and errors."""
 
-from clbeam.io.images import ImageWriter, open_images
-from clbeam.io.peaks import read_peaks_csv, write_peaks_csv
-from clbeam.io.pingfile import PingDataset, PingFile, pings_from_dataset
-from clbeam.io.pingwrite import dataset_from_pings, write_ping_file
+from clbeam.lazy import lazy_exports
 
-__all__ = ["ImageWriter", "PingDataset", "PingFile", "dataset_from_pings", "open_images", "pings_from_dataset",
-           "read_peaks_csv", "write_peaks_csv", "write_ping_file"]
+_EXPORTS = {
+    "clbeam.io.images": ("ImageWriter", "open_images"),
+    "clbeam.io.peaks": ("read_peaks_csv", "write_peaks_csv"),
+    "clbeam.io.pingfile": ("PingDataset", "PingFile", "pings_from_dataset"),
+    "clbeam.io.pingwrite": ("dataset_from_pings", "write_ping_file"),
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -12,6 +12,7 @@ h5netcdf and zarr is needed.
 from __future__ import annotations
 
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -65,9 +66,14 @@ class ImageWriter:
         Names from :data:`clbeam.io.schema.IMAGE_VARIABLES` to write.
     attrs : dict
         Global attributes (processing parameters).
+    background : bool
+        Write each ping in a worker thread while the caller images the next
+        (at most one ping in flight; an error of a write is raised by the
+        next :meth:`write` or by :meth:`close`).
     """
 
-    def __init__(self, path, grid: PolarGrid, n_pings: int, variables, attrs: dict | None = None):
+    def __init__(self, path, grid: PolarGrid, n_pings: int, variables, attrs: dict | None = None,
+                 background: bool = False):
         self.path = Path(path)
         self.grid = grid
         self.n_pings = int(n_pings)
@@ -79,6 +85,8 @@ class ImageWriter:
         self._zarr = self.path.suffix == ".zarr"
         self._file = self._create_zarr() if self._zarr else self._create_netcdf()
         self._sonar_written = False
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="clbeam-image-writer") if background else None
+        self._pending = None
 
     def _template(self) -> xr.Dataset:
         """Coordinates and per-ping variables (NaN until written)."""
@@ -96,8 +104,8 @@ class ImageWriter:
         f = h5netcdf.File(self.path, "a")
         n_a, n_r = self.grid.shape
         for name in self.variables:
-            v = f.create_variable(name, IMAGE_DIMS, IMAGE_DTYPES[name], chunks=(1, n_a, n_r),
-                                  compression="gzip", compression_opts=1)
+            # uncompressed: deflate shrinks these float images by under a fifth at about 1 s per variable and ping
+            v = f.create_variable(name, IMAGE_DIMS, IMAGE_DTYPES[name], chunks=(1, n_a, n_r))
             v.attrs.update(IMAGE_VARIABLES[name].attrs())
         return f
 
@@ -126,6 +134,19 @@ class ImageWriter:
         ``array_width_m``, ``imaging_setting``: mode, upsampling, beams and
         predicted error).
         """
+        if self._worker is None:
+            self._write(index, img)
+            return
+        self._wait()
+        self._pending = self._worker.submit(self._write, index, img)
+
+    def _wait(self) -> None:
+        """Wait for the ping in flight (raising its error)."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.result()
+
+    def _write(self, index: int, img) -> None:
         arrays = image_arrays(img)
         missing = [v for v in self.variables if v not in arrays]
         require(not missing, ClbeamError, f"ping {index}: the image lacks '{missing[0] if missing else ''}'")
@@ -147,7 +168,17 @@ class ImageWriter:
             self._sonar_written = True
 
     def close(self) -> None:
-        """Flush and close the file (a Zarr store's metadata consolidated again: the first ping added attributes)."""
+        """Finish the ping in flight, flush and close the file (a Zarr store's metadata consolidated
+        again: the first ping added attributes)."""
+        try:
+            self._wait()
+        finally:
+            if self._worker is not None:
+                self._worker.shutdown(wait=True)
+                self._worker = None
+            self._close_file()
+
+    def _close_file(self) -> None:
         if self._file is not None and not self._zarr:
             self._file.close()
         elif self._file is not None:

@@ -8,6 +8,10 @@ stores it.  :class:`Simulator` makes one ping at a time.  The modules are
 split by what they synthesise; :mod:`clbeam.sim.simulator` lists them.
 """
 
-from clbeam.sim.simulator import Scene, Simulator, list_scenes, load_scene, simulate, write
+from clbeam.lazy import lazy_exports
 
-__all__ = ["Scene", "Simulator", "list_scenes", "load_scene", "simulate", "write"]
+_EXPORTS = {
+    "clbeam.sim.simulator": ("Scene", "Simulator", "list_scenes", "load_scene", "simulate", "write"),
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

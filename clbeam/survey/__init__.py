@@ -29,18 +29,18 @@ The store's layout is :mod:`clbeam.io.survey_store`, its tables
 :mod:`clbeam.io.survey_products`.
 """
 
-from clbeam.errors import SurveyError
-from clbeam.io.survey_store import done_pings, is_survey_store, ledger_path, open_survey, product_paths
-from clbeam.survey.association import associate, describe_objects
-from clbeam.survey.georef import course_over_ground_deg, peak_positions, to_utm, utm_epsg
-from clbeam.survey.inputs import Failure, InputFile, ScanResult, scan_inputs
-from clbeam.survey.options import AssociationOptions, SurveyOptions, survey_parameters
-from clbeam.survey.plots import plot_survey_map
-from clbeam.survey.products import SurveyProducts, finalize_survey
-from clbeam.survey.run import STAGES, BlockTask, SurveyResult, process_block, run_survey
+from clbeam.lazy import lazy_exports
 
-__all__ = ["STAGES", "AssociationOptions", "BlockTask", "Failure", "InputFile", "ScanResult", "SurveyError",
-           "SurveyOptions", "SurveyProducts", "SurveyResult", "associate", "course_over_ground_deg",
-           "describe_objects", "done_pings", "finalize_survey", "is_survey_store", "ledger_path", "open_survey", "peak_positions",
-           "plot_survey_map", "process_block", "product_paths", "run_survey", "scan_inputs", "survey_parameters",
-           "to_utm", "utm_epsg"]
+_EXPORTS = {
+    "clbeam.errors": ("SurveyError",),
+    "clbeam.io.survey_store": ("done_pings", "is_survey_store", "ledger_path", "open_survey", "product_paths"),
+    "clbeam.survey.association": ("associate", "describe_objects"),
+    "clbeam.survey.georef": ("course_over_ground_deg", "peak_positions", "to_utm", "utm_epsg"),
+    "clbeam.survey.inputs": ("Failure", "InputFile", "ScanResult", "scan_inputs"),
+    "clbeam.survey.options": ("AssociationOptions", "SurveyOptions", "survey_parameters"),
+    "clbeam.survey.plots": ("plot_survey_map",),
+    "clbeam.survey.products": ("SurveyProducts", "finalize_survey"),
+    "clbeam.survey.run": ("STAGES", "BlockTask", "SurveyResult", "process_block", "run_survey"),
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -44,9 +44,11 @@ def test_image_writes_the_spec_variables_and_finds_each_scatterer(ping_file, tmp
 
 
 def test_peaks_from_an_image_file_equal_those_written_while_imaging(ping_file, tmp_path):
-    out, p1, p2 = tmp_path / "img.zarr", tmp_path / "a.csv", tmp_path / "b.csv"
-    assert main(["image", str(ping_file), "-o", str(out), "--peaks", str(p1), "--max-range", "50",
-                 "--angles", "-20", "30", "--angle-res", "0.5", "-q"]) == 0
+    """Unrefined (grid-cell) peaks are the same from memory and from the file; refined ones come
+    from those cells: their cell columns are file peaks, and the merged counts add up to them."""
+    out, p1, p2, p3 = tmp_path / "img.zarr", tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "c.csv"
+    grid_args = ["--max-range", "50", "--angles", "-20", "30", "--angle-res", "0.5", "-q"]
+    assert main(["image", str(ping_file), "-o", str(out), "--peaks", str(p1), "--no-refine", *grid_args]) == 0
     assert main(["peaks", str(out), "-o", str(p2), "-q"]) == 0
     a, b = read_peaks_csv(p1), read_peaks_csv(p2)
     assert len(a) == len(b) > 0
@@ -54,6 +56,11 @@ def test_peaks_from_an_image_file_equal_those_written_while_imaging(ping_file, t
     for ra, rb in zip(sorted(a, key=key), sorted(b, key=key)):
         assert key(ra) == key(rb)
         assert ra["cf"] == pytest.approx(rb["cf"], abs=1e-6)  # the file stores CF as float32
+    assert main(["image", str(ping_file), "-o", str(tmp_path / "img2.zarr"), "--peaks", str(p3), *grid_args]) == 0
+    refined = read_peaks_csv(p3)
+    cells = {key(r) for r in b}
+    assert all((r["ping"], r["cell_angle_deg"], r["cell_range_m"]) in cells for r in refined)
+    assert sum(r["cell_peaks"] for r in refined) == len(b)
 
 
 def test_reference_backend_gives_the_same_image(ping_file, tmp_path):

@@ -53,3 +53,20 @@ def test_imager_refuses_options_its_engine_cannot_honour(cl_engine, ref_engine):
     with pytest.raises(OptionError, match="reference backend only"):
         Imager(GRID, ImagingOptions(interp="exact"), engine=cl_engine)
     assert Imager(GRID, engine=ref_engine).engine is ref_engine  # precision None: the engine's own
+
+
+def test_a_data_token_reuses_the_upload_only_for_its_own_data(cl_engine, ref_engine):
+    """Calls with one token share the device copy (same results as the reference); a call with
+    other data (another token, or none) uploads its own, and the token's data come back after it."""
+    import dataclasses
+
+    a, b = random_input(seed=4), random_input(seed=5)
+    token = object()
+    a_tok = dataclasses.replace(a, data_token=token)
+    want_a = ref_engine.beamform(a, GRID, interp="cubic", outputs=("intensity",)).intensity
+    want_b = ref_engine.beamform(b, GRID, interp="cubic", outputs=("intensity",)).intensity
+    top = want_a.max()
+    for inp, want in ((a_tok, want_a), (a_tok, want_a), (b, want_b), (a_tok, want_a),
+                      (dataclasses.replace(b, data_token=object()), want_b)):
+        got = cl_engine.beamform(inp, GRID, interp="cubic", outputs=("intensity",)).intensity
+        np.testing.assert_allclose(got, want, atol=1e-4 * top)

@@ -67,6 +67,24 @@ def test_peaks_are_regional_maxima_one_per_plateau(seed):
         members[hits[0]] = set()
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_isolated_peaks_match_brute_force_and_scikit_image(seed):
+    """Continuous values (no ties: the search over the cells above the threshold) against the
+    brute-force plateaus and scikit-image's regional maxima, in the order of decreasing CF."""
+    from scipy.ndimage import uniform_filter
+    from skimage.morphology import local_maxima
+
+    rng = np.random.default_rng(seed)
+    img = uniform_filter(rng.random((60, 90)), 3)  # smooth enough for maxima, well above 0.5 in places
+    threshold = 0.5
+    expected = sorted((p[0] for p in brute_force_regional_maxima(img) if img[p[0]] > threshold),
+                      key=lambda p: -img[p])
+    got = [tuple(p) for p in coherence_peaks(img, threshold)]
+    assert got == expected and len(got) > 5
+    sk = np.argwhere(local_maxima(img, connectivity=2, allow_borders=True) & (img > threshold))
+    assert {tuple(p) for p in sk} == set(got)
+
+
 def test_hand_made_plateau_counts_once_and_ties_apart_count_twice():
     img = np.zeros((7, 9))
     img[1:3, 1:4] = 0.8           # a 2 x 3 plateau: one peak

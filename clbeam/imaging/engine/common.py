@@ -106,6 +106,11 @@ class BeamformInput:
     band_hz : (float, float) or None
         Band of the analytic signal (Hz), for the angular band limit of
         beam-sampled imaging; ``None``: up to half the sample rate.
+    data_token : object or None
+        A promise: inputs with the same token hold the same, unchanged
+        ``data``, so an engine may reuse its scaled device copy of them
+        between calls (the beams and directly imaged cells of one call, the
+        points of the sub-cell refinement); ``None``: no reuse across calls.
     """
 
     data: np.ndarray
@@ -119,6 +124,7 @@ class BeamformInput:
     tables: object | None = None
     table_source: object | None = None
     band_hz: tuple | None = None
+    data_token: object | None = None
 
     def __post_init__(self):
         d = self.data
@@ -378,6 +384,9 @@ class Engine:
     """What both backends share: checks of the call, and the amplitude
     normalisation that keeps float32 sums of any data in range.
 
+    (:attr:`_exponent_cache` holds the last data token's exponent: one tuple,
+    replaced whole, so threads sharing an engine read a consistent pair.)
+
     A backend sets :attr:`name` and :attr:`precision` and implements
     ``_beamform(inp, grid, mode, outputs, range_window_m, scale) -> Sums``
     on the data times ``scale``, a power of two that brings their largest
@@ -387,6 +396,7 @@ class Engine:
 
     name = ""
     precision = ""
+    _exponent_cache: tuple | None = None
 
     def beamform(self, inp: BeamformInput, grid: PolarGrid, *, interp: str = "linear",
                  outputs=("intensity", "cf"), range_window_m: np.ndarray | None = None,
@@ -423,7 +433,9 @@ class Engine:
         check_record_length(inp, mode)
         self._check_mode(mode)
         outs = check_outputs(outputs)
-        exponent = amplitude_exponent(inp.data)
+        if inp.data_token is None:  # the calls inside this one share the data
+            inp = dataclasses.replace(inp, data_token=object())
+        exponent = self._exponent(inp)
         scale = np.ldexp(1.0, -exponent)
         plan = None
         if beams is not None:
@@ -450,6 +462,15 @@ class Engine:
             for name, value in _sums_arrays(direct).items():
                 arrays[name][mask] = value[mask]
         return _sums_from(arrays)
+
+    def _exponent(self, inp: BeamformInput) -> int:
+        """:func:`amplitude_exponent` of the data, kept for the last data token."""
+        cached = self._exponent_cache
+        if cached is not None and cached[0] is inp.data_token:
+            return cached[1]
+        exponent = amplitude_exponent(inp.data)
+        self._exponent_cache = (inp.data_token, exponent)
+        return exponent
 
     def _interpolate_beams(self, plan, beam: "Sums", outs, out_windows, weighted):
         """Output arrays and flagged cells from the beam sums (:func:`interpolate_beams`)."""

@@ -111,26 +111,8 @@ class ReferenceEngine(Engine):
             data = data * scale
         if mode.baseband:
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
-        n_cells = grid.n_cells
         computed = _computed(grid, range_window_m)
-        acc = {"s": np.zeros(n_cells, dtype=np.complex128), "q": np.zeros(n_cells), "m": np.zeros(n_cells, dtype=np.int32),
-               "w": np.zeros(n_cells), "g": np.zeros(n_cells)}
-        signature = channel_signature(inp.n_channels)
-        weights = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
-        paths = _CellPaths(inp, grid)
-        for b0 in range(0, n_cells, BLOCK_CELLS):
-            sl = slice(b0, min(b0 + BLOCK_CELLS, n_cells))
-            for n, pos in enumerate(paths.sample_positions(sl)):
-                v = interpolate(data[n], pos, mode)
-                if mode.baseband:
-                    v = v * _carrier(inp, pos)
-                ok = np.isfinite(v) & computed[sl]
-                v = np.where(ok, v, 0)
-                acc["s"][sl] += weights[n] * v
-                acc["q"][sl] += weights[n] * np.abs(v) ** 2
-                acc["m"][sl] += ok
-                acc["w"][sl] += weights[n] * ok
-                acc["g"][sl] += signature[n] * ok
+        acc = _accumulate(inp, data, _CellPaths.of_grid(inp, grid), mode, computed)
         return _results(acc, outs, grid.shape, inp.weights is not None)
 
 
@@ -144,28 +126,63 @@ def _computed(grid: PolarGrid, range_window_m) -> np.ndarray:
     return ((j >= win[:, :1]) & (j < win[:, 1:])).ravel()
 
 
-class _CellPaths:
-    """Fractional sample positions of every channel's echo from a block of cells."""
+def _accumulate(inp: BeamformInput, data: np.ndarray, paths: "_CellPaths", mode: InterpMode,
+                computed: np.ndarray) -> dict:
+    """``S, Q, M, W, G`` of the cells of ``paths`` (flat), block by block; cells not ``computed`` stay 0."""
+    n_cells = computed.size
+    acc = {"s": np.zeros(n_cells, dtype=np.complex128), "q": np.zeros(n_cells), "m": np.zeros(n_cells, dtype=np.int32),
+           "w": np.zeros(n_cells), "g": np.zeros(n_cells)}
+    signature = channel_signature(inp.n_channels)
+    weights = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
+    for b0 in range(0, n_cells, BLOCK_CELLS):
+        sl = slice(b0, min(b0 + BLOCK_CELLS, n_cells))
+        for n, pos in enumerate(paths.sample_positions(sl)):
+            v = interpolate(data[n], pos, mode)
+            if mode.baseband:
+                v = v * _carrier(inp, pos)
+            ok = np.isfinite(v) & computed[sl]
+            v = np.where(ok, v, 0)
+            acc["s"][sl] += weights[n] * v
+            acc["q"][sl] += weights[n] * np.abs(v) ** 2
+            acc["m"][sl] += ok
+            acc["w"][sl] += weights[n] * ok
+            acc["g"][sl] += signature[n] * ok
+    return acc
 
-    def __init__(self, inp: BeamformInput, grid: PolarGrid):
+
+class _CellPaths:
+    """Fractional sample positions of every channel's echo from a block of cells (or points)."""
+
+    def __init__(self, inp: BeamformInput, cell_y: np.ndarray, cell_z: np.ndarray, tables: dict | None = None):
         self.inp = inp
-        th = np.deg2rad(grid.angles_deg)
-        self.cell_y = (grid.ranges_m[None, :] * np.sin(th)[:, None]).ravel()
-        self.cell_z = (grid.ranges_m[None, :] * np.cos(th)[:, None]).ravel()
+        self.cell_y, self.cell_z = cell_y, cell_z
         self.c = inp.sound_speed_m_s
+        if tables is not None:
+            # two-way time from the centre, and each point's ray direction and wavefront radius
+            self.t_centre = 2.0 * np.ravel(tables["time_s"])
+            self.ray_y, self.ray_z = np.ravel(tables["launch_sin"]), np.ravel(tables["launch_cos"])
+            self.rho = np.ravel(tables["wavefront_radius_m"])
+            self.c = float(tables["centre_speed_m_s"])
+        self.tabled = tables is not None
+
+    @classmethod
+    def of_grid(cls, inp: BeamformInput, grid: PolarGrid) -> "_CellPaths":
+        """The paths of every cell of ``grid`` (through ``inp.tables`` when given)."""
+        th = np.deg2rad(grid.angles_deg)
+        cell_y = (grid.ranges_m[None, :] * np.sin(th)[:, None]).ravel()
+        cell_z = (grid.ranges_m[None, :] * np.cos(th)[:, None]).ravel()
+        tables = None
         if inp.tables is not None:
             inp.check_tables(grid)
             tab = inp.tables
-            # two-way time from the centre, and each point's ray direction and wavefront radius
-            self.t_centre = 2.0 * tab.time_s.ravel()
-            self.ray_y, self.ray_z = tab.launch_sin.ravel(), tab.launch_cos.ravel()
-            self.rho = tab.wavefront_radius_m.ravel()
-            self.c = tab.centre_speed_m_s
+            tables = {"time_s": tab.time_s, "launch_sin": tab.launch_sin, "launch_cos": tab.launch_cos,
+                      "wavefront_radius_m": tab.wavefront_radius_m, "centre_speed_m_s": tab.centre_speed_m_s}
+        return cls(inp, cell_y, cell_z, tables)
 
     def sample_positions(self, sl: slice):
         """Yield, channel by channel, the sample positions ``(t - t0) fs`` for the cells ``sl``."""
         inp, c = self.inp, self.c
-        if inp.tables is None:  # straight rays: the path length from each point to the cell
+        if not self.tabled:  # straight rays: the path length from each point to the cell
             y, z = self.cell_y[sl], self.cell_z[sl]
             t_base = 0.0
         else:  # rays from the centre; a point's path differs by |rho u - o| - rho

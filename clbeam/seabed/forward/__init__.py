@@ -12,77 +12,29 @@ from a compressed trace (:mod:`.inversion`).  :mod:`.cli` holds the
 ``clbeam forward`` subcommand.
 """
 
-from clbeam.seabed.forward.attenuation import (
-                          DB_TO_NP,
-                          LinearAttenuation,
-                          PowerLawAttenuation,
-                          as_linear,
-                          attenuation_np_per_m,
-                          linearise_attenuation,
-)
-from clbeam.seabed.forward.config import (
-                          BUNDLED,
-                          LayoutFileError,
-                          load_seabed,
-                          seabed_from_dict,
-                          table2_layout,
-)
-from clbeam.seabed.forward.inversion import (
-                          EchoEstimate,
-                          InversionResult,
-                          LayerEstimate,
-                          UnresolvableError,
-                          invert_trace,
-)
-from clbeam.seabed.forward.layers import (
-                          Interface,
-                          Layer,
-                          Seabed,
-                          layer_from_grain_size,
-                          water_column,
-)
-from clbeam.seabed.forward.reflection import (
-                          fluid_interface,
-                          rayleigh_reflection,
-                          snell_cosines,
-)
-from clbeam.seabed.forward.response import (
-                          EchoSet,
-                          echo_times,
-                          layer_echoes,
-                          specular_echoes,
-                          transfer_function,
-)
-from clbeam.seabed.forward.roughness import (
-                          rayleigh_parameter,
-                          reflection_roughness_factor,
-                          transmission_parameter,
-                          transmission_roughness_factor,
-)
-from clbeam.seabed.forward.trace import (
-                          CHIRPS,
-                          HIGH_CHIRP,
-                          LOW_CHIRP,
-                          Chirp,
-                          ForwardTrace,
-                          compress_circular,
-                          simulate_trace,
-)
-from clbeam.seabed.forward.transition import (
-                          transition_coefficients,
-                          transition_reflection_drop_db,
-                          transition_threshold,
-)
+from clbeam.lazy import lazy_exports
 
-__all__ = [
-    "DB_TO_NP", "LinearAttenuation", "PowerLawAttenuation", "as_linear", "attenuation_np_per_m",
-    "linearise_attenuation",
-    "BUNDLED", "LayoutFileError", "load_seabed", "seabed_from_dict", "table2_layout",
-    "EchoEstimate", "InversionResult", "LayerEstimate", "UnresolvableError", "invert_trace",
-    "Interface", "Layer", "Seabed", "layer_from_grain_size", "water_column",
-    "fluid_interface", "rayleigh_reflection", "snell_cosines",
-    "EchoSet", "echo_times", "layer_echoes", "specular_echoes", "transfer_function",
-    "rayleigh_parameter", "reflection_roughness_factor", "transmission_parameter", "transmission_roughness_factor",
-    "CHIRPS", "HIGH_CHIRP", "LOW_CHIRP", "Chirp", "ForwardTrace", "compress_circular", "simulate_trace",
-    "transition_coefficients", "transition_reflection_drop_db", "transition_threshold",
-]
+_EXPORTS = {
+    "clbeam.seabed.forward.attenuation": (
+        "DB_TO_NP", "LinearAttenuation", "PowerLawAttenuation", "as_linear", "attenuation_np_per_m",
+        "linearise_attenuation",
+    ),
+    "clbeam.seabed.forward.config": ("BUNDLED", "LayoutFileError", "load_seabed", "seabed_from_dict", "table2_layout"),
+    "clbeam.seabed.forward.inversion": (
+        "EchoEstimate", "InversionResult", "LayerEstimate", "UnresolvableError", "invert_trace",
+    ),
+    "clbeam.seabed.forward.layers": ("Interface", "Layer", "Seabed", "layer_from_grain_size", "water_column"),
+    "clbeam.seabed.forward.reflection": ("fluid_interface", "rayleigh_reflection", "snell_cosines"),
+    "clbeam.seabed.forward.response": ("EchoSet", "echo_times", "layer_echoes", "specular_echoes", "transfer_function"),
+    "clbeam.seabed.forward.roughness": (
+        "rayleigh_parameter", "reflection_roughness_factor", "transmission_parameter", "transmission_roughness_factor",
+    ),
+    "clbeam.seabed.forward.trace": (
+        "CHIRPS", "HIGH_CHIRP", "LOW_CHIRP", "Chirp", "ForwardTrace", "compress_circular", "simulate_trace",
+    ),
+    "clbeam.seabed.forward.transition": (
+        "transition_coefficients", "transition_reflection_drop_db", "transition_threshold",
+    ),
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -1,0 +1,7 @@
+"""``python -m clbeam``: the ``clbeam`` command."""
+
+import sys
+
+from clbeam.cli.main import main
+
+sys.exit(main())

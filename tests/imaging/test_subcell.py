@@ -1,0 +1,124 @@
+"""Sub-cell coherence peaks against the scatterers' true positions.
+
+The scenes place point scatterers at random between grid nodes with exact
+band-limited delays (``tests/scenes.py``, independent of clbeam's
+simulator); a refined peak must sit within a tenth of a cell of the truth
+with a smoothed CF of at least 0.98, wherever the point falls between nodes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scenes import point_ping, polar_point
+
+from clbeam.imaging.engine import interp_mode
+from clbeam.imaging.imager import Imager, ImagingOptions
+from clbeam.imaging.subcell import RefinedPeaks, lobe_maximum, merge_refined, refine_peaks
+from clbeam.model.grid import PolarGrid
+from clbeam.model.svp import SoundSpeedProfile
+
+RANGE_STEP, ANGLE_STEP = 0.2, 0.1
+
+
+def grid_for(ranges_m, angles_deg, shift=(0.0, 0.0)) -> PolarGrid:
+    """A paper-resolution grid (0.2 m x 0.1 deg) around the targets, offset by ``shift`` cells."""
+    lo = np.floor(min(ranges_m) - 3.0) + shift[0] * RANGE_STEP
+    a0 = np.floor(min(angles_deg) - 4.0) + shift[1] * ANGLE_STEP
+    return PolarGrid(lo + RANGE_STEP * np.arange(int((max(ranges_m) - lo + 3.0) / RANGE_STEP)),
+                     a0 + ANGLE_STEP * np.arange(int((max(angles_deg) - a0 + 4.0) / ANGLE_STEP)))
+
+
+def refined_near(rows, r, a):
+    """The peak row nearest to (r, a), and its distance in cells (range, angle)."""
+    d = [max(abs(row["range_m"] - r) / RANGE_STEP, abs(row["angle_deg"] - a) / ANGLE_STEP) for row in rows]
+    row = rows[int(np.argmin(d))]
+    return row, abs(row["range_m"] - r) / RANGE_STEP, abs(row["angle_deg"] - a) / ANGLE_STEP
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_points_between_nodes_refine_to_a_tenth_of_a_cell_with_full_cf(seed):
+    rng = np.random.default_rng(seed)
+    ranges = rng.uniform(60.0, 140.0, 3)
+    angles = np.array([-45.0, 5.0, 50.0]) + rng.uniform(-3, 3, 3)
+    ping = point_ping([polar_point(r, a) for r, a in zip(ranges, angles)], record_s=0.22)
+    grid = grid_for(ranges, angles)
+    rows = Imager(grid, ImagingOptions()).image(ping).peaks
+    for r, a in zip(ranges, angles):
+        row, dr, da = refined_near(rows, r, a)
+        assert dr < 0.1 and da < 0.1, (r, a, row)
+        assert row["cf"] >= 0.98
+        assert {"cell_range_m", "cell_angle_deg", "cell_cf", "cell_peaks"} <= set(row)
+
+
+def test_off_node_and_on_node_points_give_the_same_peak():
+    """The same scatterer on a node and half a cell off it (the grid moved by half a cell in range
+    and angle): the grid cells' CF differ, the refined positions and CF do not."""
+    r, a = 95.3, 12.4
+    ping = point_ping([polar_point(r, a)], record_s=0.16)
+    results = []
+    for shift in ((0.0, 0.0), (0.5, 0.5)):
+        grid = grid_for([r], [a], shift)
+        rows = Imager(grid, ImagingOptions()).image(ping).peaks
+        results.append(refined_near(rows, r, a)[0])
+    on, off = results
+    assert abs(on["range_m"] - off["range_m"]) < 0.05 * RANGE_STEP
+    assert abs(on["angle_deg"] - off["angle_deg"]) < 0.05 * ANGLE_STEP
+    assert on["cf"] == pytest.approx(off["cf"], abs=0.005)
+    assert on["intensity_db"] == pytest.approx(off["intensity_db"], abs=0.05)
+
+
+def test_refinement_through_travel_time_tables_equals_straight_rays():
+    """A constant-speed profile sends the refinement through the grid's ray-traced tables
+    (interpolated to the points): the same peaks as straight rays."""
+    r, a = 88.7, -20.3
+    ping = point_ping([polar_point(r, a)], record_s=0.16)
+    grid = grid_for([r], [a])
+    straight = Imager(grid, ImagingOptions()).image(ping).peaks
+    tabled = Imager(grid, ImagingOptions()).image(dataclasses.replace(ping, svp=SoundSpeedProfile.constant(1500.0))).peaks
+    row_s, row_t = refined_near(straight, r, a)[0], refined_near(tabled, r, a)[0]
+    assert row_t["range_m"] == pytest.approx(row_s["range_m"], abs=0.01 * RANGE_STEP)
+    assert row_t["angle_deg"] == pytest.approx(row_s["angle_deg"], abs=0.01 * ANGLE_STEP)
+    assert row_t["cf"] == pytest.approx(row_s["cf"], abs=1e-3)
+
+
+def test_refined_intensity_is_the_sums_maximum():
+    """The refined point's intensity is not below any cell of a fine direct image around it."""
+    r, a = 70.55, 30.04
+    ping = point_ping([polar_point(r, a)], record_s=0.12)
+    grid = grid_for([r], [a])
+    im = Imager(grid, ImagingOptions(interp="lanczos8"))
+    img = im.image(ping)
+    row = refined_near(img.peaks, r, a)[0]
+    fine = PolarGrid(row["range_m"] + np.linspace(-0.05, 0.05, 21), row["angle_deg"] + np.linspace(-0.05, 0.05, 21))
+    inp = im.beamform_input(ping)
+    direct = im.engine.beamform(inp.for_grid(fine), fine, interp="lanczos8", outputs=("intensity",)).intensity
+    assert 10 * np.log10(direct.max()) <= row["intensity_db"] + 0.01
+
+
+def test_lobe_maximum_stays_in_the_run_above_the_threshold():
+    cf = np.array([[0.1, 0.5, 0.6, 0.2, 0.9, 0.9]])
+    intensity = np.array([[9.0, 1.0, 2.0, 8.0, 7.0, 1.0]])
+    # the run through cell 1 is cells 1-2 (cell 3 is at 0.2): its most intense cell is 2, not 0, 3 or 4
+    np.testing.assert_array_equal(lobe_maximum(cf, intensity, np.array([0]), np.array([1]), 0.25), [2])
+    np.testing.assert_array_equal(lobe_maximum(cf, intensity, np.array([0]), np.array([5]), 0.25), [4])
+
+
+def test_merge_keeps_the_first_of_each_echo_and_counts_the_rest():
+    z = np.zeros(4)
+    refined = RefinedPeaks(range_m=np.array([10.0, 10.05, 12.0, 10.02]), angle_deg=np.array([1.0, 1.1, 1.0, 3.0]),
+                           cf_smooth=z, cf=z, intensity=z, cell=np.zeros((4, 2), dtype=np.int64),
+                           n_cells=np.ones(4, dtype=np.int64))
+    merged = merge_refined(refined, 0.1, 0.5)
+    np.testing.assert_array_equal(merged.range_m, [10.0, 12.0, 10.02])
+    np.testing.assert_array_equal(merged.n_cells, [2, 1, 1])
+
+
+def test_no_peak_refines_to_nothing():
+    ping = point_ping([polar_point(50.0, 0.0)], record_s=0.08)
+    grid = grid_for([50.0], [0.0])
+    im = Imager(grid, ImagingOptions())
+    out = refine_peaks(im.engine, im.beamform_input(ping), grid, np.zeros((0, 2), dtype=np.int64), interp_mode("cubic"))
+    assert out.range_m.size == 0 and out.cell.shape == (0, 2)
