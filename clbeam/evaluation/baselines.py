@@ -9,10 +9,13 @@ order and the loop vectorises, linear interpolation of the analytic signal
 split into real and imaginary planes, the same sums and CF as the kernels.
 Non-finite samples are zeroed once before the loops (``fastmath`` assumes
 finite numbers), so they count in ``M``.  It is not a clbeam backend;
-``clbeam bench`` times it against the OpenCL engine.
+``clbeam bench`` times it against the OpenCL engine, and PyLops' Kirchhoff
+migration (:func:`pylops_kirchhoff`) as a peer library.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -82,3 +85,34 @@ def numba_beamform(inp: BeamformInput, grid: PolarGrid) -> tuple[np.ndarray, np.
          np.cos(th).astype(f32), grid.ranges_m.astype(f32), f32(inp.t0_s * inp.sample_rate_hz),
          f32(inp.sample_rate_hz / inp.sound_speed_m_s), intensity, cf)
     return intensity, cf
+
+
+def pylops_kirchhoff(inp: BeamformInput, y_m: np.ndarray, z_m: np.ndarray):
+    """PyLops' Kirchhoff migration (the adjoint of its demigration, analytic straight rays, numba
+    engine) of the channels on a Cartesian grid: the coherent sum ``S`` (complex, ``(len(y_m),
+    len(z_m))``) from the adjoint of the real and of the imaginary part, and the operator.
+
+    The peer computes what clbeam's sum ``S`` is, with linear interpolation: one source (the
+    transmitter) and the elements as receivers in the cross-track plane, times from sample 0 at
+    transmit (a record starting at ``t0 > 0`` is padded).  Positions are offsets from the grid
+    centre (m); returns ``(S, seconds per adjoint pair)``.
+    """
+    import time
+
+    from pylops.waveeqprocessing import Kirchhoff
+
+    pad = int(round(inp.t0_s * inp.sample_rate_hz))
+    data = np.nan_to_num(np.asarray(inp.data, dtype=np.complex128))
+    data = np.pad(data, ((0, 0), (max(pad, 0), 0)))
+    t = np.arange(data.shape[1]) / inp.sample_rate_hz
+    o = np.asarray(inp.element_offsets_m, dtype=np.float64)
+    s = np.asarray(inp.source_offset_m, dtype=np.float64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)  # PyLops announces its v3 interface
+        op = Kirchhoff(z=np.asarray(z_m, dtype=np.float64), x=np.asarray(y_m, dtype=np.float64), t=t,
+                       srcs=np.array([[s[1]], [s[2]]]), recs=np.stack([o[:, 1], o[:, 2]]), vel=inp.sound_speed_m_s,
+                       wav=np.array([1.0]), wavcenter=0, mode="analytic", engine="numba", dtype="float64")
+    start = time.perf_counter()
+    image = op.H @ data.real.ravel() + 1j * (op.H @ data.imag.ravel())
+    seconds = time.perf_counter() - start
+    return image.reshape(len(y_m), len(z_m)), seconds

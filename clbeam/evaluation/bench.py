@@ -101,6 +101,7 @@ class BenchResult:
     skipping: list
     setup: dict = field(default_factory=dict)
     command: dict = field(default_factory=dict)
+    pylops_cells_ch_per_s: float = np.nan
 
 
 def paper_grid() -> PolarGrid:
@@ -187,7 +188,9 @@ def run_benchmark(ping, *, grid: PolarGrid | None = None, accuracy_grid: PolarGr
     setup = {"grid": f"{grid.shape[1]} ranges x {grid.shape[0]} angles", "channels": inp1.n_channels,
              "samples": inp1.n_samples, "sample_rate_hz": inp1.sample_rate_hz, "device": getattr(eng, "label", "?"),
              "accuracy_window": f"{accuracy_grid.shape[1]} ranges x {accuracy_grid.shape[0]} angles"}
-    return BenchResult(rows, numpy_rate, numba_rate, whole, skipping, setup)
+    say("PyLops' Kirchhoff adjoint")
+    return BenchResult(rows, numpy_rate, numba_rate, whole, skipping, setup,
+                       pylops_cells_ch_per_s=pylops_rate(inp1, grid, n_cells=min(3e5, grid.n_cells)))
 
 
 class _Inputs:
@@ -237,6 +240,25 @@ def _baseline_rates(inputs: _Inputs, grid: PolarGrid, stride: int, mode: str, re
     numba_beamform(inp1, PolarGrid(grid.ranges_m[:8], grid.angles_deg[:2]))  # compile
     t_nb = best_time(lambda: numba_beamform(inp1, grid), max(1, repeats - 1))
     return numpy_rate, grid.n_cells * inp1.n_channels / t_nb
+
+
+def pylops_rate(inp, grid: PolarGrid, n_cells: float = 3e5) -> float:
+    """Cells x channels per second of PyLops' Kirchhoff adjoint (the coherent sum only, real and imaginary
+    parts; the operator built once, as for many pings) on a Cartesian grid of about ``n_cells`` over
+    ``grid``'s extent (its travel-time tables hold 65 numbers a cell); NaN without PyLops."""
+    try:
+        import pylops  # noqa: F401
+    except ImportError:
+        return np.nan
+    from clbeam.evaluation.baselines import pylops_kirchhoff
+
+    r_max = float(grid.ranges_m[-1])
+    y_half = r_max * np.sin(np.deg2rad(np.max(np.abs(grid.angles_deg))))
+    n_y = int(np.sqrt(n_cells * 2 * y_half / r_max))
+    y, z = np.linspace(-y_half, y_half, n_y), np.linspace(0.05 * r_max, r_max, int(n_cells / n_y))
+    pylops_kirchhoff(inp, y[:4], z[:4])  # compile
+    _, seconds = pylops_kirchhoff(inp, y, z)
+    return y.size * z.size * inp.n_channels / seconds
 
 
 def _mode_row(eng, inputs: _Inputs, grid: PolarGrid, accuracy_grid: PolarGrid, exact, case: Case, repeats: int,
@@ -343,7 +365,9 @@ def markdown_table(result: BenchResult) -> str:
                      f"| {r.predicted_error_db:.1f} | {r.max_abs_dcf:.3f} | {r.peak_precision:.2f} / {r.peak_recall:.2f} "
                      f"| {r.x_numpy:.0f} | {r.x_numba:.1f} |")
     lines += ["", f"NumPy float64 reference: {result.numpy_cells_ch_per_s:.2e} cells·ch/s; "
-                  f"numba parallel linear: {result.numba_cells_ch_per_s:.2e} cells·ch/s.", "",
+                  f"numba parallel linear (float32, fastmath, hoisted geometry): "
+                  f"{result.numba_cells_ch_per_s:.2e} cells·ch/s; PyLops Kirchhoff adjoint (linear, S only): "
+                  f"{result.pylops_cells_ch_per_s:.2e} cells·ch/s.", "",
               "| skipping | ms/ping |", "|---|---:|"]
     lines += [f"| {s['what']} | {s['ms_per_ping']:.0f} |" for s in result.skipping]
     lines += ["", "Whole ping (raw → intensity, CF, peaks), ms: "

@@ -277,9 +277,11 @@ class Imager:
             log.warning("ping %d: %d non-finite sample(s) skipped", ping.index, n_bad)
         if ping.kind == "raw":
             require(ping.pulse is not None, OptionError, "raw samples need a pulse description to compress")
-            data = compress_analytic(x[used], ping.pulse.replica(ping.sample_rate_hz))
+            data = compress_analytic(x[used], ping.pulse.replica(ping.sample_rate_hz),
+                                     precision=compression_precision(x[used], self.engine.precision))
         else:
-            data = np.where(finite[used], x[used], np.nan).astype(np.complex128)
+            complex_type = np.complex64 if self.engine.precision == "float32" else np.complex128
+            data = np.where(finite[used], x[used], np.nan).astype(complex_type)
         factors = calibration_factors(ping.element_gain_db, ping.element_phase_deg, ping.n_channels)
         if self.options.calibrate and factors is not None:
             data *= factors[used, None]
@@ -461,6 +463,16 @@ class Imager:
     def peak_row_builder(self, img: PingImage):
         """``f(cf_smooth, intensity) -> rows`` for another image of ``img``'s ping (e.g. a stack)."""
         return lambda cf_smooth, intensity: self.peak_rows(img.context, cf_smooth, intensity)
+
+
+def compression_precision(samples: np.ndarray, engine_precision: str) -> str:
+    """Pulse compression in float32 for a float32 engine, unless the samples' magnitudes (beyond
+    1e-25 to 1e25) would under- or overflow float32 FFT sums: then float64 (the engine scales after)."""
+    if engine_precision != "float32" or samples.size == 0:
+        return "float64"
+    with np.errstate(invalid="ignore"):
+        peak = float(np.nanmax(np.abs(samples))) if np.isfinite(samples).any() else 0.0
+    return "float32" if 1e-25 < peak < 1e25 else "float64"
 
 
 def check_grid_fits_memory(grid: PolarGrid, options: ImagingOptions, *, fraction: float = 0.5) -> None:

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from clbeam.errors import OptionError
 from clbeam.imaging.engine.common import BeamformInput, InterpMode, Sums, interp_mode
 from clbeam.imaging.postprocess import HANN7
 from clbeam.imaging.raytrace import TravelTimeTables
@@ -266,14 +267,42 @@ class _Evaluator:
         # one data token: the engine uploads the channels once for every stage of the search
         self.inp = dataclasses.replace(inp, table_source=None, tables=None, data_token=inp.data_token or object())
 
-    def __call__(self, ranges_m: np.ndarray, angles_deg: np.ndarray) -> Sums:
+    def __call__(self, ranges_m: np.ndarray, angles_deg: np.ndarray, outputs=("intensity", "cf")) -> Sums:
         r = np.asarray(ranges_m, dtype=np.float64).ravel()
         a = np.asarray(angles_deg, dtype=np.float64).ravel()
         points = PolarGrid(np.array([1.0]), np.linspace(-90.0, 90.0, r.size + 1)[:-1])
         tables = _point_tables(self.tables, self.grid, r, a, self.inp.sound_speed_m_s, points)
         sums = self.engine.beamform(dataclasses.replace(self.inp, tables=tables), points, interp=self.mode.name,
-                                    outputs=("intensity", "cf"))
-        return Sums(intensity=sums.intensity.reshape(np.shape(ranges_m)), cf=sums.cf.reshape(np.shape(ranges_m)))
+                                    outputs=outputs)
+        shape = np.shape(ranges_m)
+        return Sums(**{k: None if v is None else v.reshape(shape) for k, v in vars(sums).items()})
+
+
+def sums_at_points(engine, inp: BeamformInput, ranges_m: np.ndarray, angles_deg: np.ndarray, *,
+                   interp: str = "linear", grid: PolarGrid | None = None,
+                   outputs=("intensity", "cf")) -> Sums:
+    """The delay-and-sum at arbitrary points, each a cell with its own travel-time table entry.
+
+    Parameters
+    ----------
+    engine : Engine
+        Either backend.
+    inp : BeamformInput
+        The ping's channels; with ray-traced tables (``inp.table_source`` or
+        ``inp.tables``) those of ``grid`` are interpolated to the points.
+    ranges_m, angles_deg : numpy.ndarray
+        The points' range (m) and angle (degree) from the grid centre, any same shape.
+    interp : str
+        Interpolation mode.
+    grid : PolarGrid, optional
+        The grid whose tables apply (needed only with tables).
+    outputs : iterable of str
+        As :meth:`Engine.beamform`.
+    """
+    has_tables = inp.table_source is not None or inp.tables is not None
+    if has_tables and grid is None:
+        raise OptionError("sums at points with ray-traced travel times need the grid whose tables apply")
+    return _Evaluator(engine, inp, grid, interp_mode(interp))(ranges_m, angles_deg, outputs)
 
 
 def _point_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: np.ndarray, sound_speed_m_s: float,

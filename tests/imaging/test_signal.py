@@ -74,3 +74,19 @@ def test_upsampling_is_exact_for_a_bandlimited_periodic_signal():
 def test_replica_rejects_a_band_above_nyquist():
     with pytest.raises(OptionError, match="Nyquist"):
         lfm_replica(f0_hz=2000, f1_hz=25000, duration_s=0.01, sample_rate_hz=FS)
+
+
+def test_float32_compression_is_float64_to_float32_rounding():
+    """The float32 FFTs of a float32 engine's compression: within 1e-6 of float64 (relative,
+    over the record), complex64 out; magnitudes float32 sums cannot hold stay in float64."""
+    from clbeam.imaging.imager import compression_precision
+
+    rng = np.random.default_rng(2)
+    x = rng.standard_normal((4, 5000))
+    replica = np.sin(2 * np.pi * np.linspace(0, 40, 400)) * np.hanning(400)
+    y64, y32 = compress_analytic(x, replica), compress_analytic(x, replica, precision="float32")
+    assert y32.dtype == np.complex64 and y64.dtype == np.complex128
+    assert np.linalg.norm(y32 - y64) / np.linalg.norm(y64) < 1e-6
+    assert compression_precision(x, "float32") == "float32"
+    assert compression_precision(x * 1e30, "float32") == compression_precision(x * 1e-30, "float32") == "float64"
+    assert compression_precision(x, "float64") == "float64"
