@@ -46,7 +46,7 @@ def test_two_provinces_separate_in_the_attributes_at_the_right_place(tmp_path):
     pings = write_ping_file(ds, tmp_path / "pings.nc")
     images = tmp_path / "img.nc"
     assert main(["image", str(pings), "-o", str(images), "--range-res", "0.5", "--angle-res", "0.5",
-                 "--angles", "-75", "75", "--max-range", "500", "--backend", "reference", "-q"]) == 0
+                 "--angles", "-75", "75", "--max-range", "500", "-q"]) == 0
     # first pass uncalibrated: the strengths carry the unknown source level and gains
     out = tmp_path / "avo.csv"
     assert avo([str(images), "-o", str(out), "--pings-per-patch", "20", "--absorption", "0",
