@@ -7,13 +7,13 @@
  * sinc summing to 1); the coherent sum S (complex) and the incoherent sum Q
  * are interpolated, and intensity |S|^2 and CF = |S|^2 / (M Q) (W Q with
  * apodization) are formed from them.  M, the channel signature G (and W)
- * must be the same on every tap: otherwise different channels made the
- * taps' sums, the cell is not interpolated but flagged (flag = 1) for the
- * host to image directly.
+ * must be the same on every tap (beam_ok, computed by the host per support
+ * start): otherwise different channels made the taps' sums, the cell is not
+ * interpolated but flagged (flag = 1) for the host to image directly.
  * Cells outside the output window [win_first, win_end) are 0 and unflagged.
  *
  * Compile-time macros (-D): REAL_T, REAL_IS_DOUBLE, TAPS, N_RANGE, APODIZE,
- * WANT_INTENSITY, WANT_CF, WANT_SUMS, SIGNATURE_TOLERANCE.
+ * WANT_INTENSITY, WANT_CF, WANT_SUMS.
  */
 #if REAL_IS_DOUBLE
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
@@ -25,7 +25,7 @@ __kernel void beam_to_grid(
     __global const real_t *restrict beam_q,   /* [n_beam][N_RANGE] */
     __global const int *restrict beam_m,      /* [n_beam][N_RANGE] */
     __global const real_t *restrict beam_w,   /* [n_beam][N_RANGE], APODIZE */
-    __global const real_t *restrict beam_g,   /* [n_beam][N_RANGE] channel signature G */
+    __global const uchar *restrict beam_ok,   /* [n_beam][N_RANGE] the TAPS beams from here agree */
     const int n_beam,
     __global const int *restrict tap0,        /* [n_angle] first beam of each output angle */
     __global const real_t *restrict tap_w,    /* [n_angle][TAPS] */
@@ -51,23 +51,17 @@ __kernel void beam_to_grid(
     const int b0 = inside ? tap0[ia] : 0;
     const size_t first = (size_t)b0 * N_RANGE + ir;
     const int m0 = beam_m[first];
-    const real_t g0 = beam_g[first];
 #if APODIZE
     const real_t w0 = beam_w[first];
 #endif
+    const int same = beam_ok[first];
     real_t sr = 0, si = 0, q = 0;
-    int same = 1;
     for (int k = 0; k < TAPS; ++k) {
         const size_t b = first + (size_t)k * N_RANGE;
         const real_t wk = tap_w[ia * TAPS + k];
         sr += wk * beam_s[b];
         si += wk * beam_s[plane + b];
         q += wk * beam_q[b];
-        same &= beam_m[b] == m0;
-        same &= fabs(beam_g[b] - g0) <= (real_t)SIGNATURE_TOLERANCE;
-#if APODIZE
-        same &= fabs(beam_w[b] - w0) <= (real_t)1e-6 * fabs(w0);
-#endif
     }
     const int keep = inside && same;
     sr = keep ? sr : (real_t)0;

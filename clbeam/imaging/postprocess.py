@@ -34,12 +34,16 @@ def hann_smooth(cf: np.ndarray, weights: np.ndarray = HANN7) -> np.ndarray:
     # shifted adds (a zero-padded correlation; the window is symmetric, so a
     # convolution) skipping zero taps: much faster than a general filter
     out = w[h] * x
+    tmp = np.empty_like(out)  # one scratch array: a temporary per product costs more than the adds
     for k in range(1, h + 1):
         if w[h + k] == 0 and w[h - k] == 0:
             continue
         if k < n:
-            out[..., :-k] += w[h + k] * x[..., k:]
-            out[..., k:] += w[h - k] * x[..., :-k]
+            part = tmp[..., : n - k]
+            np.multiply(x[..., k:], w[h + k], out=part)
+            out[..., :-k] += part
+            np.multiply(x[..., :-k], w[h - k], out=part)
+            out[..., k:] += part
     return out
 
 

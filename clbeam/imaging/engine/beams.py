@@ -201,18 +201,10 @@ def interpolate_beams(plan: BeamPlan, beam, outputs: frozenset, out_windows: np.
         not be interpolated (their taps disagree on ``M`` or ``W``).
     """
     idx = plan.first_tap[:, None] + np.arange(plan.taps)[None, :]          # (n_angle, taps)
-    w = plan.weights[:, :, None]
     s = np.einsum("atr,at->ar", beam.s[idx], plan.weights)
     q = np.einsum("atr,at->ar", beam.q[idx].astype(np.float64), plan.weights)
     m_taps = beam.m[idx]
-    ok = np.all(m_taps == m_taps[:, :1], axis=1)
-    if beam.signature is not None:
-        g_taps = beam.signature[idx]
-        ok &= np.all(np.abs(g_taps - g_taps[:, :1]) <= SIGNATURE_TOLERANCE, axis=1)
-    if weighted:
-        w_taps = beam.w[idx]
-        ok &= np.all(np.abs(w_taps - w_taps[:, :1]) <= 1e-6 * np.abs(w_taps[:, :1]), axis=1)
-    del w
+    ok = consistent_supports(beam, plan.taps, weighted)[plan.first_tap]
     n_r = beam.s.shape[1]
     j = np.arange(n_r)[None, :]
     inside = (j >= out_windows[:, :1]) & (j < out_windows[:, 1:])
@@ -222,6 +214,29 @@ def interpolate_beams(plan: BeamPlan, beam, outputs: frozenset, out_windows: np.
     w_out = np.where(keep, beam.w[idx][:, 0], 0.0) if weighted else None
     s, q = np.where(keep, s, 0), np.where(keep, q, 0.0)
     return _outputs(s, q, m, w_out, outputs), flagged
+
+
+def consistent_supports(beam, taps: int, weighted: bool) -> np.ndarray:
+    """Bool ``(n_beam, n_range)``: the ``taps`` beams from this one on have the same
+    channels (``M`` equal, signature ``G`` within :data:`SIGNATURE_TOLERANCE`, ``W``
+    within a relative 1e-6 with apodization), so a support starting here can be
+    interpolated.  Computed once per ping on the beam grid, so that each output
+    cell reads one value instead of comparing its taps."""
+    n = beam.m.shape[0] - taps + 1
+    ok = np.zeros(beam.m.shape, dtype=bool)
+    if n <= 0:
+        return ok
+    good = ok[:n]
+    good[...] = True
+    m0, g0 = beam.m[:n], None if beam.signature is None else beam.signature[:n]
+    w0 = beam.w[:n] if weighted else None
+    for k in range(1, taps):
+        good &= beam.m[k:k + n] == m0
+        if g0 is not None:
+            good &= np.abs(beam.signature[k:k + n] - g0) <= SIGNATURE_TOLERANCE
+        if w0 is not None:
+            good &= np.abs(beam.w[k:k + n] - w0) <= 1e-6 * np.abs(w0)
+    return ok
 
 
 def _outputs(s, q, m, w, outputs) -> dict:
@@ -249,13 +264,15 @@ def flagged_runs(flagged: np.ndarray, max_windows: int = 3) -> list[np.ndarray]:
     window (cells between them are imaged directly too, which changes no value).
     """
     n_a, n_r = flagged.shape
-    f = np.zeros((n_a, n_r + 2), dtype=np.int8)
-    f[:, 1:-1] = flagged
+    some = np.flatnonzero(flagged.any(axis=1))  # usually few angles: the run search on those only
+    if some.size == 0:
+        return []
+    f = np.zeros((some.size, n_r + 2), dtype=np.int8)
+    f[:, 1:-1] = flagged[some]
     d = np.diff(f, axis=1)
     rows, starts = np.nonzero(d == 1)          # row-major: the runs of each row in order
     _, ends = np.nonzero(d == -1)
-    if rows.size == 0:
-        return []
+    rows = some[rows]
     k = np.minimum(np.arange(rows.size) - np.searchsorted(rows, rows), max_windows - 1)
     out = []
     for run in range(int(k.max()) + 1):

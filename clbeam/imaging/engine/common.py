@@ -457,10 +457,13 @@ class Engine:
             else np.tile([0, grid.shape[1]], (grid.shape[0], 1))
         arrays, flagged = self._interpolate_beams(plan, beam, outs, out_windows, weighted)
         for window in flagged_runs(flagged):
-            direct = self._beamform(inp.for_grid(grid), grid, mode, outs, _window_m(grid, window), scale)
-            mask = flagged & _in_windows(window, grid.shape[1])
+            # only the angles with flagged cells, over the full range axis (its length is a kernel constant)
+            rows = np.flatnonzero(window[:, 1] > window[:, 0])
+            sub = PolarGrid(grid.ranges_m, grid.angles_deg[rows], grid.centre_yz_m, grid.beyond_vertical)
+            direct = self._beamform(inp.for_grid(sub), sub, mode, outs, _window_m(sub, window[rows]), scale)
+            ii, jj = np.nonzero(flagged[rows] & _in_windows(window[rows], grid.shape[1]))
             for name, value in _sums_arrays(direct).items():
-                arrays[name][mask] = value[mask]
+                arrays[name][rows[ii], jj] = value[ii, jj]
         return _sums_from(arrays)
 
     def _exponent(self, inp: BeamformInput) -> int:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from clbeam.imaging.engine.beams import SIGNATURE_TOLERANCE, BeamPlan
+from clbeam.imaging.engine.beams import BeamPlan, consistent_supports
 from clbeam.imaging.engine.clsupport import output_macros, pyopencl
 
 #: work-items per work-group along range
@@ -31,12 +31,12 @@ def interpolate_beams_cl(engine, plan: BeamPlan, beam, outs: frozenset, out_wind
     real = engine.real
     n_a, n_r = out_windows.shape[0], plan.grid.shape[1]
     kernel = engine.build("beam_to_grid", [f"-DTAPS={plan.taps}", f"-DN_RANGE={n_r}", *output_macros(outs),
-                                           f"-DAPODIZE={int(weighted)}", f"-DSIGNATURE_TOLERANCE={SIGNATURE_TOLERANCE!r}"])
+                                           f"-DAPODIZE={int(weighted)}"])
     s = np.stack([beam.s.real, beam.s.imag]).astype(real)
     head = [engine.upload("beam_s", s), engine.upload("beam_q", np.asarray(beam.q, dtype=real)),
             engine.upload("beam_m", np.asarray(beam.m, dtype=np.int32)),
             engine.upload("beam_w", np.asarray(beam.w if weighted else np.zeros(1), dtype=real)),
-            engine.upload("beam_g", np.asarray(beam.signature, dtype=real)),
+            engine.upload("beam_ok", consistent_supports(beam, plan.taps, weighted).view(np.uint8)),
             np.int32(plan.grid.shape[0])]
     out = _TileOutputs(engine, outs, weighted, n_a, n_r)
     for a0 in range(0, n_a, out.rows):
