@@ -377,7 +377,43 @@ def markdown_table(result: BenchResult) -> str:
         c = result.command
         lines += ["", f"`clbeam image --peaks` on a {c['pings']}-ping file (a new process, image file written): "
                       f"{c['total_s']:.2f} s, {c['s_per_ping']:.2f} s per ping, start-up {c['start_up_s']:.2f} s"]
+    targets = target_rows(result)
+    if targets:
+        lines += ["", "| target (paper grid) | measured | target | |", "|---|---:|---:|---|"]
+        lines += [_target_line(*t) for t in targets]
     return "\n".join(lines) + "\n"
+
+
+def target_rows(result: BenchResult) -> list[tuple[str, float, float, str]]:
+    """The beam-sampling work's targets (paper grid) against this run: ``(what, measured, target, unit)``,
+    a target met when the measurement is at most the target (at least, for the ``x`` ratios)."""
+    auto = {r.budget_db: r for r in result.rows if np.isfinite(r.budget_db)}
+    out = []
+    if -40.0 in auto:
+        r = auto[-40.0]
+        out += [("default setting: beamforming", r.ms_per_ping, 250.0, "ms"),
+                ("default setting: intensity error", r.intensity_error_db, -40.0, "dB"),
+                ("default setting: max |ΔCF|", r.max_abs_dcf, 0.02, ""),
+                ("default setting: x NumPy reference", r.x_numpy, 250.0, "x"),
+                ("default setting: x numba baseline", r.x_numba, 10.0, "x")]
+    if -60.0 in auto:
+        out.append(("-60 dB setting: beamforming", auto[-60.0].ms_per_ping, 1000.0, "ms"))
+    if result.whole_ping_ms:
+        out.append(("whole ping, raw to refined peaks", result.whole_ping_ms.get("total_ms", np.nan), 500.0, "ms"))
+    band = [s["ms_per_ping"] for s in result.skipping if s["what"].startswith("seabed band")]
+    if band:
+        out.append(("whole ping with the seabed band", band[0], 150.0, "ms"))
+    if result.command:
+        out += [("clbeam image, per ping", result.command["s_per_ping"], 0.7, "s"),
+                ("clbeam image, start-up", result.command["start_up_s"], 0.5, "s")]
+    return out
+
+
+def _target_line(what: str, got: float, target: float, unit: str) -> str:
+    met = got >= target if unit == "x" else got <= target
+    verdict = "met" if met else (f"not met: {got / target:.1f}x the target" if unit in ("ms", "s")
+                                 else f"not met by {abs(got - target):.3g} {unit}".rstrip())
+    return f"| {what} | {got:.3g} {unit} | {target:g} {unit} | {verdict} |".replace("  |", " |")
 
 
 def write_report(result: BenchResult, out_dir) -> dict:

@@ -335,9 +335,14 @@ def _bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: 
     ir, tr = corners(grid.ranges_m, ranges_m)
     ia1 = np.minimum(ia + 1, grid.shape[0] - 1)
     ir1 = np.minimum(ir + 1, grid.shape[1] - 1)
+    def lerp(a, b, t):  # a corner without weight (an unreachable one on a node) does not poison the point
+        return np.where(t == 0, a, np.where(t == 1, b, (1 - t) * a + t * b))
+
     out = {}
     for name in ("time_s", "launch_sin", "launch_cos", "wavefront_radius_m"):
         v = getattr(tables, name)
-        out[name] = ((1 - ta) * ((1 - tr) * v[ia, ir] + tr * v[ia, ir1])
-                     + ta * ((1 - tr) * v[ia1, ir] + tr * v[ia1, ir1]))
+        out[name] = lerp(lerp(v[ia, ir], v[ia, ir1], tr), lerp(v[ia1, ir], v[ia1, ir1], tr), ta)
+    # the launch direction is a unit vector (the kernels' path formula relies on it): interpolate, then normalise
+    norm = np.hypot(out["launch_sin"], out["launch_cos"])
+    out["launch_sin"], out["launch_cos"] = out["launch_sin"] / norm, out["launch_cos"] / norm
     return out

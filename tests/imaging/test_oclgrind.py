@@ -37,6 +37,7 @@ def test_kernels_are_clean_under_oclgrind():
     assert len(variants) >= 80  # 6 modes x (2 precisions + 2 more layouts), each plain, apodized, ray-traced; beams
     assert sum("apodized" in line for line in variants) >= 24 and sum("tables" in line for line in variants) >= 24
     assert sum(line.startswith("variant beams") for line in variants) >= 8
+    assert sum(line.startswith("variant points-tables") for line in variants) >= 8  # sub-cell refinement
     for line in variants:
         rel = float(re.search(r"rel=(\S+)", line).group(1))
         assert rel < 1e-4 and "m_equal=True" in line, line
