@@ -46,6 +46,10 @@ DEFAULT_MAX_ERROR_DB = -40.0
 # -- detection (SPEC §3 step 7; Holland et al. 2024, Section III) -----------
 #: coherence-peak threshold on the smoothed CF (the paper's 0.25)
 PEAK_THRESHOLD = 0.25
+#: CF (and peaks) only in cells summed from at least this fraction of the usable channels
+DEFAULT_MIN_CHANNELS = 0.5
+#: peaks only this far above the ping's noise floor (dB; clbeam.imaging.detection)
+DEFAULT_MIN_SNR_DB = 6.0
 #: CF threshold of persistence maps and of the survey association (paper Figs. 9-10)
 MAP_THRESHOLD = 0.4
 

@@ -13,10 +13,13 @@
  * Cells outside the output window [win_first, win_end) are 0 and unflagged.
  *
  * Compile-time macros (-D): REAL_T, REAL_IS_DOUBLE, TAPS, N_RANGE, APODIZE,
- * WANT_INTENSITY, WANT_CF, WANT_SUMS.
+ * WANT_INTENSITY, WANT_CF, WANT_SUMS, MIN_CHANNELS (CF is 0 where M is below it).
  */
 #if REAL_IS_DOUBLE
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#endif
+#ifndef MIN_CHANNELS
+#define MIN_CHANNELS 1
 #endif
 typedef REAL_T real_t;
 
@@ -78,7 +81,7 @@ __kernel void beam_to_grid(
     out_intensity[cell] = inten;
 #endif
 #if WANT_CF
-    out_cf[cell] = denom > (real_t)0 ? fmin(inten / denom, (real_t)1) : (real_t)0;
+    out_cf[cell] = denom > (real_t)0 && m0 >= MIN_CHANNELS ? fmin(inten / denom, (real_t)1) : (real_t)0;
 #endif
 #if WANT_SUMS
     out_s[cell] = sr;

@@ -26,6 +26,7 @@
  *   APODIZE             1: receive weights w_n (clbeam/apodization.py):
  *                       S = sum w p, Q = sum w |p|^2, W = sum w,
  *                       CF = |S|^2 / (W Q) in [0, 1] (Cauchy-Schwarz)
+ *   MIN_CHANNELS        CF is 0 in cells summed from fewer channels (default 1)
  *   WANT_SIGNATURE      1: also G = sum g_n over the contributing channels,
  *                       g_n a distinct number per channel: cells with equal G
  *                       summed the same channels (beam-sampled imaging)
@@ -44,6 +45,9 @@
  */
 #if REAL_IS_DOUBLE
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#endif
+#ifndef MIN_CHANNELS
+#define MIN_CHANNELS 1
 #endif
 typedef REAL_T real_t;
 
@@ -193,7 +197,8 @@ __kernel void beamform(
 #endif
 #if WANT_CF
     SCATTER(real_t, out_cf, cell, N_RANGE, select((vreal)0, inten / (denom_w * q),
-                                                  RMASK(denom_w > (real_t)0) & RMASK(q > (real_t)0)));
+                                                  RMASK(denom_w > (real_t)0) & RMASK(q > (real_t)0)
+                                                  & RMASK(m >= (real_t)MIN_CHANNELS)));
 #endif
 #if WANT_SUMS
     SCATTER(real_t, out_s, cell, N_RANGE, sr);

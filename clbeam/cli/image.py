@@ -73,12 +73,14 @@ def run(args) -> int:
         variables = image_variables(opts.outputs, apodized=opts.apodization != "rect")
         stack = None
         if args.stack > 1:
-            stack = PingStack(args.stack, opts.threshold)
+            stack = PingStack(args.stack, opts.threshold, opts.min_channels)
             opts = dataclasses.replace(opts, outputs=tuple(set(opts.outputs) | {"intensity", "sums"}))
         imager = Imager(grid, opts, backend=args.backend, device=args.device)
         attrs = {"interp": opts.interp, "upsample": opts.upsample or "auto", "beams": args.beams,
                  "max_error_db": opts.max_error_db, "backend": args.backend,
                  "apodization": opts.apodization, "calibrated": int(opts.calibrate), "stacked_pings": args.stack,
+                 "min_channels": opts.min_channels, "threshold": opts.threshold,
+                 "min_snr_db": "off" if opts.min_snr_db is None else opts.min_snr_db,
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         t0 = time.perf_counter()
         out = Path(args.output)

@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import sys
 from pathlib import Path
 
-from clbeam.constants import DEFAULT_MAX_ERROR_DB, PEAK_THRESHOLD
+from clbeam.constants import DEFAULT_MAX_ERROR_DB, DEFAULT_MIN_CHANNELS, DEFAULT_MIN_SNR_DB, PEAK_THRESHOLD
 from clbeam.errors import ClbeamError, OptionError
 
 
@@ -90,6 +91,10 @@ def add_imaging_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--sound-speed", type=float, default=None, metavar="M/S", help="override the file's sound speed (m/s)")
     g.add_argument("--threshold", type=float, default=PEAK_THRESHOLD,
                    help=f"coherence-peak threshold on smoothed CF (default {PEAK_THRESHOLD:g})")
+    add_min_snr_option(g)
+    g.add_argument("--min-channels", type=float, default=DEFAULT_MIN_CHANNELS, metavar="N",
+                   help="CF and peaks only in cells summed from at least N channels: a count, or below 1 a "
+                        f"fraction of the ping's usable channels (default {DEFAULT_MIN_CHANNELS:g})")
     g.add_argument("--seabed-band", type=float, nargs=2, default=None, metavar=("ABOVE", "BELOW"),
                    help="compute only cells from ABOVE m above to BELOW m below the seabed (e.g. 5 40)")
     g.add_argument("--seabed-depth", type=float, default=None, metavar="M",
@@ -111,6 +116,26 @@ def add_imaging_options(p: argparse.ArgumentParser) -> None:
                    help="ignore the file's element_gain_db / element_phase_deg (default: remove them)")
 
 
+def min_snr_db(text: str) -> float | None:
+    """``--min-snr-db``: a number of dB, or ``off``."""
+    if text.strip().lower() == "off":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of dB or 'off', got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number of dB or 'off', got {text!r}")
+    return value
+
+
+def add_min_snr_option(group) -> None:
+    """``--min-snr-db`` (image, peaks, survey)."""
+    group.add_argument("--min-snr-db", type=min_snr_db, default=DEFAULT_MIN_SNR_DB, metavar="DB",
+                       help="peaks only this far above the ping's noise floor (default "
+                            f"{DEFAULT_MIN_SNR_DB:g} dB; 'off': every peak above the CF threshold)")
+
+
 def options_from_args(args, **overrides):
     """:class:`~clbeam.imaging.ImagingOptions` from arguments of :func:`add_imaging_options`
     (``overrides``: fields to set otherwise)."""
@@ -123,7 +148,8 @@ def options_from_args(args, **overrides):
                   seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
                   seabed_depth_m=args.seabed_depth, apodization=args.apodization,
                   calibrate=not args.no_calibration, mlh=args.mlh, use_svp=not args.isospeed,
-                  sediment_speed_m_s=args.sediment_speed, refine_peaks=not args.no_refine)
+                  sediment_speed_m_s=args.sediment_speed, refine_peaks=not args.no_refine,
+                  min_channels=args.min_channels, min_snr_db=args.min_snr_db)
     return ImagingOptions(**{**fields, **overrides})
 
 

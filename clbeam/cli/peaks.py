@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from clbeam.cli.options import add_min_snr_option
 from clbeam.constants import PEAK_THRESHOLD
 
 NAME = "peaks"
@@ -16,6 +17,7 @@ def add_arguments(p) -> None:
                    help=f"threshold on smoothed CF (default {PEAK_THRESHOLD:g})")
     p.add_argument("--mlh", action="store_true",
                    help="merge the coherence peaks on one main-lobe arc into one detection (lobe-fitted position)")
+    add_min_snr_option(p)
 
 
 def run(args) -> int:
@@ -28,7 +30,7 @@ def run(args) -> int:
     check_output_path(args.output, args.images)
     ds = open_images(args.images)
     try:
-        rows = peaks_from_images(ds, args.threshold, mlh=args.mlh)
+        rows = peaks_from_images(ds, args.threshold, mlh=args.mlh, min_snr_db=args.min_snr_db)
     finally:
         ds.close()
     write_peaks_csv(rows, args.output)

@@ -22,6 +22,8 @@ import numpy as np
 
 from clbeam.constants import (
     DEFAULT_MAX_ERROR_DB,
+    DEFAULT_MIN_CHANNELS,
+    DEFAULT_MIN_SNR_DB,
     PEAK_THRESHOLD,
     SEDIMENT_SPEED_RANGE_M_S,
     WATER_SPEED_RANGE_M_S,
@@ -34,7 +36,7 @@ from clbeam.imaging.apodization import (
 )
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
 from clbeam.imaging.engine.beams import BeamSampling
-from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs
+from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs, min_channels_of
 from clbeam.imaging.engine.errormodel import Setting, choose_setting, predicted_settings
 from clbeam.imaging.geometry import check_positions, to_earth_frame
 from clbeam.imaging.peaks import PingContext, peak_rows
@@ -111,6 +113,15 @@ class ImagingOptions:
     refine_peaks : bool
         Move every coherence peak to its echo's intensity maximum from the exact
         sums, one row per echo (:mod:`clbeam.imaging.subcell`; not with ``mlh``).
+    min_channels : float
+        CF, and so the peaks, only in cells summed from at least this many
+        channels: a count (an integer >= 1) or, below 1, a fraction of the
+        ping's usable channels (default 0.5: half).  With one channel CF is 1
+        by definition; near the record's ends, where few channels reach a
+        cell, CF is large for noise.
+    min_snr_db : float or None
+        Peaks only this far (dB) above the ping's noise floor
+        (:mod:`clbeam.imaging.detection`; default 6 dB); ``None``: every peak above the threshold.
     """
 
     interp: str = "auto"
@@ -129,6 +140,8 @@ class ImagingOptions:
     beams: BeamSampling | str | None = "auto"
     max_error_db: float = DEFAULT_MAX_ERROR_DB
     refine_peaks: bool = True
+    min_channels: float = DEFAULT_MIN_CHANNELS
+    min_snr_db: float | None = DEFAULT_MIN_SNR_DB
 
     def __post_init__(self):
         if self.interp != "auto":
@@ -142,6 +155,12 @@ class ImagingOptions:
         require(self.upsample is None or (int(self.upsample) == self.upsample and 1 <= self.upsample <= 16),
                 OptionError, f"upsample must be an integer 1-16, got {self.upsample!r}")
         require(0 <= self.threshold <= 1, OptionError, f"threshold must be within 0-1, got {self.threshold!r}")
+        require(isinstance(self.min_channels, (int, float)) and math.isfinite(self.min_channels)
+                and (0 < self.min_channels < 1 or (self.min_channels >= 1 and int(self.min_channels) == self.min_channels)),
+                OptionError, f"the minimum of channels must be a fraction in (0, 1) or a count >= 1, "
+                f"got {self.min_channels!r}")
+        require(self.min_snr_db is None or math.isfinite(self.min_snr_db), OptionError,
+                f"the minimum SNR must be a finite number of dB or None, got {self.min_snr_db!r}")
         if self.seabed_band_m is not None:
             band = tuple(float(v) for v in self.seabed_band_m)
             require(len(band) == 2 and all(np.isfinite(band)) and band[0] + band[1] > 0, OptionError,
@@ -255,6 +274,7 @@ class Imager:
         self.engine = engine
         self._tables: dict = {}
         self._settings: dict = {}
+        self._warned_beyond = False
 
     # -- preparation ------------------------------------------------------
     def analytic_channels(self, ping: Ping) -> tuple[np.ndarray, np.ndarray]:
@@ -310,10 +330,11 @@ class Imager:
         window = parse_window(self.options.apodization)
         weights = None if window.uniform else receive_weights(window, ping.element_pos_m[:, 1])[used]
         inp = BeamformInput(
-            data=data, sample_rate_hz=fs, t0_s=ping.t0_s,
+            data=data, sample_rate_hz=fs, t0_s=ping.t0_s - compression_delay_s(ping),
             sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
             element_offsets_m=elements - centre, source_offset_m=source - centre,
-            centre_frequency_hz=fc or 0.0, weights=weights, band_hz=band)
+            centre_frequency_hz=fc or 0.0, weights=weights, band_hz=band,
+            min_channels=min_channels_of(self.options.min_channels, data.shape[0]))
         return self._with_tables(ping, inp, float(centre[2])), setting
 
     def setting(self, offsets_m: np.ndarray, band_hz, ping: Ping, n_samples: int) -> Setting:
@@ -416,6 +437,7 @@ class Imager:
         if range_window_m is None and self.options.seabed_band_m is not None:
             range_window_m = self._seabed_window(ping, inp)
         check_grid_reaches_record(inp, self.grid)
+        self._warn_beyond_record(inp)
         t0 = time.perf_counter()
         outs = set(self.options.outputs)
         sums = self.engine.beamform(inp, self.grid, interp=setting.interp,
@@ -423,7 +445,7 @@ class Imager:
                                     range_window_m=range_window_m, beams=setting.beams)
         t["image_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        context = PingContext.of_ping(ping, self.grid, self.options.sound_speed_m_s)
+        context = PingContext.of_ping(ping, self.grid, self.options.sound_speed_m_s, n_channels=inp.n_channels)
         cf_smooth = peaks = None
         if sums.cf is not None:
             cf_smooth = hann_smooth(sums.cf)
@@ -434,6 +456,17 @@ class Imager:
                          intensity=sums.intensity if "intensity" in outs else None, cf=sums.cf, cf_smooth=cf_smooth,
                          sums=sums if "sums" in outs else None, peaks=peaks or [], context=context, timings_s=t,
                          n_channels_used=inp.n_channels, setting=setting.describe())
+
+    def _warn_beyond_record(self, inp: BeamformInput) -> None:
+        """A warning, the first time only, when the grid runs past the record's end by more than a range step."""
+        excess, end_m = grid_beyond_record_m(inp, self.grid)
+        step = float(np.max(np.diff(self.grid.ranges_m))) if self.grid.shape[1] > 1 else 0.0
+        if excess > step and not self._warned_beyond:
+            self._warned_beyond = True
+            log.warning("the grid reaches %.2f m beyond the end of the record (to %.2f m; the record ends at "
+                        "%.2f m): fewer channels reach the cells there, and their CF needs at least %d of %d "
+                        "channels (--min-channels)", excess, float(self.grid.ranges_m[-1]), end_m,
+                        inp.min_channels, inp.n_channels)
 
     def _seabed_window(self, ping: Ping, inp: BeamformInput) -> np.ndarray:
         """Per-angle ranges of the seabed band around the given or picked seabed."""
@@ -450,6 +483,7 @@ class Imager:
         """Rows of the peaks table for one ping (SPEC §3 step 7) with this imager's threshold and MLH
         option (refined with ``refine``, see :func:`clbeam.imaging.peaks.peak_rows`)."""
         return peak_rows(context, cf_smooth, intensity, self.grid, threshold=self.options.threshold,
+                         min_snr_db=self.options.min_snr_db,
                          mlh=self.options.mlh, refine=refine)
 
     def _refiner(self, inp: BeamformInput, setting: Setting, cf_smooth: np.ndarray, intensity: np.ndarray | None):
@@ -463,6 +497,14 @@ class Imager:
     def peak_row_builder(self, img: PingImage):
         """``f(cf_smooth, intensity) -> rows`` for another image of ``img``'s ping (e.g. a stack)."""
         return lambda cf_smooth, intensity: self.peak_rows(img.context, cf_smooth, intensity)
+
+
+def compression_delay_s(ping: Ping) -> float:
+    """How late (s) pulse compression puts every echo: the replica's ``tx_delay`` for raw pressure, 0 for
+    analytic data (compressed already)."""
+    if ping.kind == "raw" and ping.pulse is not None:
+        return float(ping.pulse.delay_s)
+    return 0.0
 
 
 def compression_precision(samples: np.ndarray, engine_precision: str) -> str:
@@ -494,6 +536,13 @@ def check_grid_fits_memory(grid: PolarGrid, options: ImagingOptions, *, fraction
             "use a coarser grid or a smaller window")
 
 
+def grid_beyond_record_m(inp: BeamformInput, grid: PolarGrid) -> tuple[float, float]:
+    """How far (m) the grid's last range lies beyond the range the record reaches, ``c (t0 + n / fs) / 2``
+    (as :meth:`clbeam.io.pingfile.PingFile.max_record_range_m`), and that range (m)."""
+    end_m = 0.5 * inp.sound_speed_m_s * (inp.t0_s + inp.n_samples / inp.sample_rate_hz)
+    return max(0.0, float(grid.ranges_m[-1]) - end_m), end_m
+
+
 def check_grid_reaches_record(inp: BeamformInput, grid: PolarGrid) -> None:
     """Raise :class:`GridError` when no cell of ``grid`` can be imaged from
     the record (every travel time before its first or after its last sample)."""
@@ -505,4 +554,5 @@ def check_grid_reaches_record(inp: BeamformInput, grid: PolarGrid) -> None:
                         f"reaches ranges {0.5 * c * inp.t0_s:g}-{0.5 * c * t_end:g} m")
 
 
-__all__ = ["Imager", "ImagingOptions", "PingImage", "check_grid_fits_memory", "check_grid_reaches_record"]
+__all__ = ["Imager", "ImagingOptions", "PingImage", "check_grid_fits_memory", "check_grid_reaches_record",
+           "grid_beyond_record_m", "min_channels_of"]

@@ -18,11 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from clbeam.constants import (
+    DEFAULT_MIN_SNR_DB,
     PEAK_THRESHOLD,
     SBP29_ARRAY_WIDTH_M,
     SBP29_BAND_HZ,
     SOUND_SPEED_M_S,
 )
+from clbeam.imaging.detection import annotate_and_gate, noise_floor, smoothing_variance_factor
 from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.mlh import (
     arc_tolerances,
@@ -57,6 +59,8 @@ class PingContext:
         Receive array width across-track (m).
     sound_speed_m_s : float
         Sound speed the ping was imaged with (m/s).
+    n_channels : int or None
+        Channels that took part (the peaks' false-alarm probability); ``None``: unknown.
     """
 
     index: int
@@ -68,11 +72,13 @@ class PingContext:
     band_hz: tuple = SBP29_BAND_HZ
     array_width_m: float = SBP29_ARRAY_WIDTH_M
     sound_speed_m_s: float = SOUND_SPEED_M_S
+    n_channels: int | None = None
 
     @classmethod
-    def of_ping(cls, ping, grid: PolarGrid, sound_speed_m_s: float | None = None) -> "PingContext":
+    def of_ping(cls, ping, grid: PolarGrid, sound_speed_m_s: float | None = None,
+                n_channels: int | None = None) -> "PingContext":
         """The context of a :class:`~clbeam.model.ping.Ping` imaged on ``grid``
-        (at ``sound_speed_m_s``, default the ping's)."""
+        (at ``sound_speed_m_s``, default the ping's, from ``n_channels`` usable channels)."""
         pulse = ping.pulse
         lfm = pulse is not None and pulse.f0_hz is not None and pulse.f0_hz != pulse.f1_hz
         band = (min(pulse.f0_hz, pulse.f1_hz), max(pulse.f0_hz, pulse.f1_hz)) if lfm else SBP29_BAND_HZ
@@ -82,7 +88,8 @@ class PingContext:
         return cls(index=int(ping.index), centre_yz_m=tuple(float(v) for v in grid.centre(tuple(ping.source_pos_m[1:]))),
                    source_yz_m=(float(source[1]), float(source[2])), latitude_deg=ping.latitude_deg,
                    longitude_deg=ping.longitude_deg, heading_deg=ping.heading_deg, band_hz=band,
-                   array_width_m=width, sound_speed_m_s=float(sound_speed_m_s or ping.sound_speed_m_s))
+                   array_width_m=width, sound_speed_m_s=float(sound_speed_m_s or ping.sound_speed_m_s),
+                   n_channels=n_channels)
 
     @property
     def navigation(self) -> dict:
@@ -92,7 +99,7 @@ class PingContext:
 
 def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None, grid: PolarGrid, *,
               threshold: float = PEAK_THRESHOLD, mlh: bool = False, position: str = "lobe", refine=None,
-              **mlh_options) -> list[dict]:
+              min_snr_db: float | None = DEFAULT_MIN_SNR_DB, **mlh_options) -> list[dict]:
     """Rows of the peaks table for one ping (SPEC §3 step 7).
 
     Parameters
@@ -119,14 +126,30 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         with the ping's data): rows at the refined points, one per echo, the grid
         cell's range, angle and smoothed CF in ``cell_range_m``, ``cell_angle_deg``,
         ``cell_cf`` and the grid peaks merged in ``cell_peaks`` (not with ``mlh``).
+    min_snr_db : float or None
+        Keep only peaks this far above the ping's noise floor (dB,
+        :mod:`clbeam.imaging.detection`); ``None``: every peak above the CF threshold.
     **mlh_options
         With ``mlh``: overrides of :func:`~clbeam.imaging.mlh.suppress_main_lobe_highlights`.
 
     Returns
     -------
     list of dict
-        :data:`clbeam.io.peaks.PEAK_COLUMNS` and the ship's navigation, by decreasing CF.
+        :data:`clbeam.io.peaks.PEAK_COLUMNS`, ``snr_db`` and ``pfa`` (with an intensity image) and the
+        ship's navigation, by decreasing CF.
     """
+    rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options)
+    if intensity is None:
+        return rows
+    band = context.band_hz
+    factor = smoothing_variance_factor(float(np.median(np.diff(grid.ranges_m))) if grid.shape[1] > 1 else 1.0,
+                                       float(band[1] - band[0]), context.sound_speed_m_s)
+    return annotate_and_gate(rows, floor=noise_floor(intensity, cf_smooth), n_channels=context.n_channels,
+                             variance_factor=factor, min_snr_db=min_snr_db)
+
+
+def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options) -> list[dict]:
+    """The rows of :func:`peak_rows` before the detection test."""
     peaks = coherence_peaks(cf_smooth, threshold)
     nav = context.navigation
     if mlh:
@@ -172,10 +195,16 @@ def image_file_context(ds, i: int) -> PingContext:
                        longitude_deg=_value(ds, "longitude", i), heading_deg=_value(ds, "heading", i),
                        band_hz=SBP29_BAND_HZ if band is None else tuple(float(b) for b in np.ravel(band)),
                        array_width_m=float(ds.attrs.get("array_width_m", SBP29_ARRAY_WIDTH_M)),
-                       sound_speed_m_s=_value(ds, "sound_speed", i, SOUND_SPEED_M_S))
+                       sound_speed_m_s=_value(ds, "sound_speed", i, SOUND_SPEED_M_S),
+                       n_channels=_channels(_value(ds, "n_channels", i)))
 
 
-def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = False) -> list:
+def _channels(value) -> int | None:
+    return int(value) if value is not None and value > 0 else None
+
+
+def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = False,
+                      min_snr_db: float | None = DEFAULT_MIN_SNR_DB) -> list:
     """Peak rows of every ping of an image dataset (:func:`peak_rows` on its ``cf``, Hann smoothed).
 
     Parameters
@@ -186,6 +215,8 @@ def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = Fals
         Coherence-peak threshold on the smoothed CF.
     mlh : bool
         One detection per main-lobe arc.
+    min_snr_db : float or None
+        As :func:`peak_rows`.
     """
     grid = PolarGrid(ds["range"].values, ds["angle"].values)
     if mlh and "source_y" not in ds.variables:
@@ -194,5 +225,6 @@ def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = Fals
     for i in range(ds.sizes["ping"]):
         cf_s = hann_smooth(ds["cf"].isel(ping=i).values)
         inten = ds["intensity"].isel(ping=i).values if "intensity" in ds.variables else None
-        rows.extend(peak_rows(image_file_context(ds, i), cf_s, inten, grid, threshold=threshold, mlh=mlh))
+        rows.extend(peak_rows(image_file_context(ds, i), cf_s, inten, grid, threshold=threshold, mlh=mlh,
+                              min_snr_db=min_snr_db))
     return rows

@@ -26,6 +26,7 @@ import numpy as np
 
 from clbeam.constants import PEAK_THRESHOLD
 from clbeam.errors import OptionError, require
+from clbeam.imaging.engine.common import min_channels_of
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
 
 
@@ -70,16 +71,21 @@ class PingStack:
         Pings per stack; the first ``k - 1`` stacks hold the pings there are.
     threshold : float
         Coherence-peak threshold on the stacked, smoothed CF.
+    min_channels : float
+        A ping's cell adds to the stacked CF only when summed from at least
+        this many channels (a count, or below 1 a fraction of its usable
+        channels: :class:`~clbeam.imaging.imager.ImagingOptions`).
 
     Feed it the :class:`~clbeam.imaging.imager.PingImage` of consecutive pings
     imaged with the ``"sums"`` output on one grid; :meth:`add` returns the
     stack ending at that ping.
     """
 
-    def __init__(self, k: int, threshold: float = PEAK_THRESHOLD):
+    def __init__(self, k: int, threshold: float = PEAK_THRESHOLD, min_channels: float = 1):
         require(int(k) == k and k >= 1, OptionError, f"pings per stack must be an integer >= 1, got {k!r}")
         self.k = int(k)
         self.threshold = threshold
+        self.min_channels = min_channels
         self._window: deque = deque(maxlen=self.k)
         self._shape = None
 
@@ -93,13 +99,18 @@ class PingStack:
             self._shape = inten.shape
         require(inten.shape == self._shape, OptionError,
                 f"ping {img.ping}: image shape {inten.shape} differs from the stack's {self._shape}; one grid per stack")
-        self._window.append((img.ping, inten, sums.coherence_denominator()))
-        num = np.sum([w[1] for w in self._window], axis=0)
-        den = np.sum([w[2] for w in self._window], axis=0)
+        enough = sums.m >= min_channels_of(self.min_channels, img.n_channels_used)
+        den = sums.coherence_denominator()
+        if not enough.all():  # otherwise the CF numerator is the intensity itself: no second array held
+            den *= enough
+        self._window.append((img.ping, inten, inten if enough.all() else inten * enough, den))
+        num = np.sum([w[2] for w in self._window], axis=0)
+        den = np.sum([w[3] for w in self._window], axis=0)
         with np.errstate(invalid="ignore", divide="ignore"):
             cf = np.where(den > 0, num / den, 0.0)
         cf_smooth = hann_smooth(cf)
-        return StackedImage(ping=img.ping, pings=tuple(w[0] for w in self._window), intensity=num / len(self._window),
+        mean_intensity = np.sum([w[1] for w in self._window], axis=0) / len(self._window)
+        return StackedImage(ping=img.ping, pings=tuple(w[0] for w in self._window), intensity=mean_intensity,
                             cf=cf, cf_smooth=cf_smooth, threshold=self.threshold)
 
 

@@ -154,7 +154,7 @@ class ImageWriter:
         source = ctx.source_yz_m or (np.nan, np.nan)
         meta = {"centre_y": ctx.centre_yz_m[0], "centre_z": ctx.centre_yz_m[1], "source_y": source[0],
                 "source_z": source[1], "sound_speed": ctx.sound_speed_m_s, "latitude": ctx.latitude_deg,
-                "longitude": ctx.longitude_deg, "heading": ctx.heading_deg}
+                "longitude": ctx.longitude_deg, "heading": ctx.heading_deg, "n_channels": ctx.n_channels}
         target = self._file if self._zarr else self._file.variables
         for k in self.variables:
             target[k][index, :, :] = arrays[k]

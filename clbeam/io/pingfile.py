@@ -154,17 +154,37 @@ class PingDataset:
         else:
             raise self._err("missing variable 'samples' (or the pair 'samples_r', 'samples_i') (SPEC §7)")
         self._need(np.issubdtype(s.dtype, np.number), f"variable '{s.name}' has dtype {s.dtype}, expected numbers")
-        self.kind = str(s.attrs.get("kind", "raw"))
-        self._need(self.kind in ("raw", "analytic"), f"variable '{s.name}' has kind='{self.kind}', expected 'raw' or 'analytic'")
+        self.kind = self._read_kind(s)
         is_complex = np.issubdtype(s.dtype, np.complexfloating) or self._split
         self._need(not (self.kind == "raw" and is_complex),
-                   f"variable '{s.name}' is complex but kind='raw'; raw pressure must be real")
+                   f"variable '{s.name}' is complex but kind='raw'; raw pressure must be real (set kind='analytic' "
+                   "if it is the pulse-compressed analytic signal)")
         self._need(not (self.kind == "analytic" and not is_complex),
                    f"variable '{s.name}' has kind='analytic' but is real; store it complex or as 'samples_r'/'samples_i'")
         self.n_pings, self.n_channels, self.n_samples = (int(ds.sizes[d]) for d in ("ping", "channel", "sample"))
         self._need(self.n_pings > 0, "contains no pings (dimension 'ping' has length 0)")
         self._need(self.n_channels > 0, "has no channels (dimension 'channel' has length 0)")
         self._need(self.n_samples > 1, f"has {self.n_samples} sample(s) per channel, expected at least 2")
+
+    def _read_kind(self, s) -> str:
+        """``kind`` of the samples: on ``samples`` (or the dataset), default raw; a ``samples_r``/``samples_i``
+        pair is analytic, ``kind`` on either half or the dataset may say so and nothing else."""
+        ds = self.ds
+        places = [(f"variable '{v}'", ds[v].attrs["kind"]) for v in
+                  (("samples_r", "samples_i") if self._split else ("samples",)) if "kind" in ds[v].attrs]
+        if "kind" in ds.attrs:
+            places.append(("the dataset", ds.attrs["kind"]))
+        for where, kind in places:
+            self._need(str(kind) in ("raw", "analytic"), f"{where} has kind='{kind}', expected 'raw' or 'analytic'")
+        kinds = {str(k) for _, k in places}
+        if self._split:
+            raw = [where for where, k in places if str(k) == "raw"]
+            self._need(not raw, f"the pair 'samples_r'/'samples_i' is the analytic signal (SPEC §7) but "
+                       f"{raw[0] if raw else ''} has kind='raw': store raw pressure as one real 'samples', or set "
+                       "kind='analytic'")
+            return "analytic"
+        self._need(len(kinds) <= 1, f"variable '{s.name}' and the dataset disagree on kind ({' and '.join(sorted(kinds))})")
+        return kinds.pop() if kinds else "raw"
 
     def _read_sampling(self) -> None:
         """Sample rate, ``t0`` and sound speed."""
@@ -219,12 +239,16 @@ class PingDataset:
         return np.broadcast_to(a, (self.n_pings,))
 
     def _read_pulse(self) -> Pulse | None:
+        d = self._real("tx_delay")
+        self._need(d is None or (d.size == 1 and bool(np.isfinite(d).all())),
+                   "variable 'tx_delay' must be one finite number of seconds")
+        delay = 0.0 if d is None else float(d.reshape(-1)[0])
         w = self._real("tx_waveform")
         if w is not None:
             self._need(w.size > 0 and float(np.dot(w, w)) > 0, "variable 'tx_waveform' is empty or all zero")
             self._need(w.size <= self.n_samples, f"variable 'tx_waveform' has {w.size} samples, more than the "
                        f"record's {self.n_samples}")
-            return Pulse(waveform=w)
+            return Pulse(waveform=w, delay_s=delay)
         names = ("pulse_f0", "pulse_f1", "pulse_duration")
         present = [n for n in names if n in self.ds.variables]
         if not present:
@@ -238,7 +262,7 @@ class PingDataset:
                    f"than the record ({record_s:g} s)")
         self._need(0 <= min(f0, f1) and max(f0, f1) < nyq,
                    f"pulse band {f0:g}-{f1:g} Hz must lie within 0-{nyq:g} Hz (half the sample rate)")
-        return Pulse(f0_hz=f0, f1_hz=f1, duration_s=dur)
+        return Pulse(f0_hz=f0, f1_hz=f1, duration_s=dur, delay_s=delay)
 
     def _read_svp(self) -> SoundSpeedProfile | None:
         present = [n for n in ("svp_depth", "svp_speed") if n in self.ds.variables]

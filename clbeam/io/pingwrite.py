@@ -65,9 +65,10 @@ def _per_ping(pings, attr: str) -> np.ndarray | None:
 def _pulse_variables(pulse) -> dict:
     if pulse is None:
         return {}
+    delay = {"tx_delay": float(pulse.delay_s)} if pulse.delay_s else {}
     if pulse.waveform is not None:
-        return {"tx_waveform": np.asarray(pulse.waveform, dtype=np.float64)}
-    return {"pulse_f0": pulse.f0_hz, "pulse_f1": pulse.f1_hz, "pulse_duration": pulse.duration_s}
+        return {"tx_waveform": np.asarray(pulse.waveform, dtype=np.float64), **delay}
+    return {"pulse_f0": pulse.f0_hz, "pulse_f1": pulse.f1_hz, "pulse_duration": pulse.duration_s, **delay}
 
 
 def _optional_variables(pings) -> dict:

@@ -43,12 +43,20 @@ class Pulse:
         LFM start/end frequency (Hz) and length (s).
     waveform : numpy.ndarray or None
         Transmit waveform sampled at the ping's sample rate (takes precedence).
+    delay_s : float
+        Time (s) of the replica's first sample after transmit start (SPEC §7
+        ``tx_delay``; negative for a wavelet centred on transmit start):
+        pulse compression puts an echo at its arrival time plus this delay.
     """
 
     f0_hz: float | None = None
     f1_hz: float | None = None
     duration_s: float | None = None
     waveform: np.ndarray | None = None
+    delay_s: float = 0.0
+
+    def __post_init__(self):
+        require(np.isfinite(self.delay_s), OptionError, f"tx_delay must be finite, got {self.delay_s!r}")
 
     def replica(self, sample_rate_hz: float) -> np.ndarray:
         """The transmit replica at ``sample_rate_hz`` (Hz) for pulse compression."""

@@ -46,7 +46,7 @@ _EPOCH = np.datetime64(0, "ns")
 _RECORD_VARIABLES = {
     "centre_y": ("centre_y_m", np.nan, np.float64), "centre_z": ("centre_z_m", np.nan, np.float64),
     "source_y": ("source_y_m", np.nan, np.float64), "source_z": ("source_z_m", np.nan, np.float64),
-    "sound_speed": ("sound_speed_m_s", np.nan, np.float64),
+    "sound_speed": ("sound_speed_m_s", np.nan, np.float64), "n_channels": ("n_channels_used", np.nan, np.float64),
     "file_index": ("file_index", -1, np.int32), "file_ping": ("file_ping", -1, np.int32),
 }
 

@@ -274,7 +274,8 @@ def test_rows_have_the_peak_columns_and_the_arc_measures():
     intensity[ia, ir] = 2.5e4
     dets = suppress_main_lobe_highlights(coherence_peaks(cf, 0.25), cf, GRID)
     (row,) = detection_rows(dets, 3, intensity, (1.0, -0.5), position="peak")
-    assert set(PEAK_COLUMNS) | set(MLH_COLUMNS) == set(row)
+    assert set(PEAK_COLUMNS) | set(MLH_COLUMNS) | {"centre_y_m", "centre_z_m"} == set(row)
+    assert (row["centre_y_m"], row["centre_z_m"]) == (1.0, -0.5)
     assert row["intensity_db"] == pytest.approx(10 * math.log10(2.5e4), abs=1e-9)
     th = math.radians(row["angle_deg"])
     assert row["y_m"] == pytest.approx(1.0 + row["range_m"] * math.sin(th), abs=1e-9)

@@ -178,7 +178,8 @@ def _beam_windows(range_window_m: np.ndarray, first: np.ndarray, taps: int, n_be
     return out
 
 
-def interpolate_beams(plan: BeamPlan, beam, outputs: frozenset, out_windows: np.ndarray, weighted: bool):
+def interpolate_beams(plan: BeamPlan, beam, outputs: frozenset, out_windows: np.ndarray, weighted: bool,
+                      min_channels: int = 1):
     """Output sums from the beam sums (the float64 oracle of the OpenCL kernel).
 
     Parameters
@@ -192,6 +193,8 @@ def interpolate_beams(plan: BeamPlan, beam, outputs: frozenset, out_windows: np.
         ``(n_angle, 2)`` first and end range index of the cells to compute.
     weighted : bool
         Apodized sums (``W`` given).
+    min_channels : int
+        CF is 0 where ``M`` is below it.
 
     Returns
     -------
@@ -213,7 +216,7 @@ def interpolate_beams(plan: BeamPlan, beam, outputs: frozenset, out_windows: np.
     m = np.where(keep, m_taps[:, 0], 0)
     w_out = np.where(keep, beam.w[idx][:, 0], 0.0) if weighted else None
     s, q = np.where(keep, s, 0), np.where(keep, q, 0.0)
-    return _outputs(s, q, m, w_out, outputs), flagged
+    return _outputs(s, q, m, w_out, outputs, min_channels), flagged
 
 
 def consistent_supports(beam, taps: int, weighted: bool) -> np.ndarray:
@@ -239,7 +242,7 @@ def consistent_supports(beam, taps: int, weighted: bool) -> np.ndarray:
     return ok
 
 
-def _outputs(s, q, m, w, outputs) -> dict:
+def _outputs(s, q, m, w, outputs, min_channels: int = 1) -> dict:
     inten = np.abs(s) ** 2
     out = {}
     if "intensity" in outputs:
@@ -247,7 +250,7 @@ def _outputs(s, q, m, w, outputs) -> dict:
     if "cf" in outputs:
         denom = (m if w is None else w) * q
         with np.errstate(invalid="ignore", divide="ignore"):
-            out["cf"] = np.where(denom > 0, np.minimum(inten / denom, 1.0), 0.0)
+            out["cf"] = np.where((denom > 0) & (m >= min_channels), np.minimum(inten / denom, 1.0), 0.0)
     if "sums" in outputs:
         out.update(s=s, q=q, m=m.astype(np.int32))
         if w is not None:

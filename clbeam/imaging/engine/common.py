@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -111,6 +112,10 @@ class BeamformInput:
         ``data``, so an engine may reuse its scaled device copy of them
         between calls (the beams and directly imaged cells of one call, the
         points of the sub-cell refinement); ``None``: no reuse across calls.
+    min_channels : int
+        CF is 0 in cells summed from fewer channels than this (``M`` below
+        it): with one channel CF is 1 by definition, with a few it is large
+        for noise (default 1: wherever a channel contributes).
     """
 
     data: np.ndarray
@@ -125,6 +130,7 @@ class BeamformInput:
     table_source: object | None = None
     band_hz: tuple | None = None
     data_token: object | None = None
+    min_channels: int = 1
 
     def __post_init__(self):
         d = self.data
@@ -139,6 +145,8 @@ class BeamformInput:
         require(self.sound_speed_m_s > 0 and np.isfinite(self.sound_speed_m_s), OptionError,
                 f"sound speed must be > 0 m/s, got {self.sound_speed_m_s!r}")
         require(np.isfinite(self.t0_s), OptionError, f"t0 must be finite, got {self.t0_s!r}")
+        require(int(self.min_channels) == self.min_channels and self.min_channels >= 1, OptionError,
+                f"the minimum of channels for CF must be an integer >= 1, got {self.min_channels!r}")
         if self.weights is not None:
             w = np.asarray(self.weights, dtype=np.float64)
             require(w.shape == (d.shape[0],), OptionError,
@@ -244,6 +252,14 @@ class Sums:
                 "the CF denominator needs the raw sums: request the 'sums' output")
         w = self.m if self.w is None else self.w
         return np.asarray(w, dtype=np.float64) * np.asarray(self.q, dtype=np.float64)
+
+
+def min_channels_of(option: float, n_used: int) -> int:
+    """The least number of channels a cell's CF needs: ``option`` itself when it is a count (>= 1),
+    else that fraction of the ``n_used`` usable channels, rounded up (at least 1)."""
+    if option >= 1:
+        return int(option)
+    return max(1, math.ceil(option * n_used - 1e-9))
 
 
 def check_outputs(outputs) -> frozenset[str]:
@@ -455,7 +471,7 @@ class Engine:
                               plan.beam_window_m, scale)
         out_windows = user_windows(grid, range_window_m) if range_window_m is not None \
             else np.tile([0, grid.shape[1]], (grid.shape[0], 1))
-        arrays, flagged = self._interpolate_beams(plan, beam, outs, out_windows, weighted)
+        arrays, flagged = self._interpolate_beams(plan, beam, outs, out_windows, weighted, inp.min_channels)
         for window in flagged_runs(flagged):
             # only the angles with flagged cells, over the full range axis (its length is a kernel constant)
             rows = np.flatnonzero(window[:, 1] > window[:, 0])
@@ -475,9 +491,9 @@ class Engine:
         self._exponent_cache = (inp.data_token, exponent)
         return exponent
 
-    def _interpolate_beams(self, plan, beam: "Sums", outs, out_windows, weighted):
+    def _interpolate_beams(self, plan, beam: "Sums", outs, out_windows, weighted, min_channels: int = 1):
         """Output arrays and flagged cells from the beam sums (:func:`interpolate_beams`)."""
-        return interpolate_beams(plan, beam, outs, out_windows, weighted)
+        return interpolate_beams(plan, beam, outs, out_windows, weighted, min_channels)
 
     def _check_mode(self, mode: InterpMode) -> None:
         """Raise :class:`OptionError` when this backend cannot run ``mode``."""

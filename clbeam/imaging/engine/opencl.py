@@ -167,7 +167,7 @@ class OpenCLEngine(Engine):
 
     # -- program cache ----------------------------------------------------
     def _kernel(self, mode: InterpMode, outs: frozenset, n_samples: int, n_range: int, apodize: bool = False,
-                table: bool = False):
+                table: bool = False, min_channels: int = 1):
         """The delay-and-sum kernel of this mode, outputs and sizes (built once)."""
         return self.build("beamform", [
             f"-DINTERP={mode.kernel_id}",
@@ -179,6 +179,7 @@ class OpenCLEngine(Engine):
             f"-DVEC={self.vec}",
             f"-DAPODIZE={int(apodize)}",
             f"-DTRAVEL_TABLE={int(table)}",
+            f"-DMIN_CHANNELS={int(min_channels)}",
         ])
 
     def build(self, entry: str, macros: list):
@@ -237,10 +238,10 @@ class OpenCLEngine(Engine):
     def _check_mode(self, mode: InterpMode) -> None:
         check_mode_runs_on(mode, self.name)
 
-    def _interpolate_beams(self, plan, beam, outs, out_windows, weighted):
+    def _interpolate_beams(self, plan, beam, outs, out_windows, weighted, min_channels: int = 1):
         """Beam sums to the output grid on the device (kernels/beam_interp.cl)."""
         with self._lock:
-            return interpolate_beams_cl(self, plan, beam, outs, out_windows, weighted)
+            return interpolate_beams_cl(self, plan, beam, outs, out_windows, weighted, min_channels)
 
     def _beamform(self, inp, grid, mode, outs, range_window_m, scale: float) -> Sums:
         """Image one ping on the device (see :meth:`Engine.beamform`): one
@@ -267,7 +268,7 @@ class OpenCLEngine(Engine):
         apodize, table = inp.weights is not None, inp.tables is not None
         if table:
             inp.check_tables(grid)
-        kernel = self._kernel(mode, outs, inp.n_samples, grid.shape[1], apodize, table)
+        kernel = self._kernel(mode, outs, inp.n_samples, grid.shape[1], apodize, table, inp.min_channels)
         itemsize = np.dtype(real).itemsize
         per_cell = (itemsize * (("intensity" in outs) + ("cf" in outs) + (3 + apodize) * ("sums" in outs) + 5 * table
                                 + ("signature" in outs)) + 4 * ("sums" in outs) + 4 * table)

@@ -18,20 +18,20 @@ LOCAL_RANGES = 64
 
 
 def interpolate_beams_cl(engine, plan: BeamPlan, beam, outs: frozenset, out_windows: np.ndarray,
-                         weighted: bool) -> tuple:
+                         weighted: bool, min_channels: int = 1) -> tuple:
     """Output arrays by name and the flagged cells, as :func:`~clbeam.imaging.engine.beams.interpolate_beams`.
 
     Parameters
     ----------
     engine : OpenCLEngine
         Its context, queue, buffers, precision and program cache are used.
-    plan, beam, outs, out_windows, weighted
+    plan, beam, outs, out_windows, weighted, min_channels
         As for :func:`~clbeam.imaging.engine.beams.interpolate_beams`.
     """
     real = engine.real
     n_a, n_r = out_windows.shape[0], plan.grid.shape[1]
     kernel = engine.build("beam_to_grid", [f"-DTAPS={plan.taps}", f"-DN_RANGE={n_r}", *output_macros(outs),
-                                           f"-DAPODIZE={int(weighted)}"])
+                                           f"-DAPODIZE={int(weighted)}", f"-DMIN_CHANNELS={int(min_channels)}"])
     s = np.stack([beam.s.real, beam.s.imag]).astype(real)
     head = [engine.upload("beam_s", s), engine.upload("beam_q", np.asarray(beam.q, dtype=real)),
             engine.upload("beam_m", np.asarray(beam.m, dtype=np.int32)),

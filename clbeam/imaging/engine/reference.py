@@ -113,7 +113,7 @@ class ReferenceEngine(Engine):
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
         computed = _computed(grid, range_window_m)
         acc = _accumulate(inp, data, _CellPaths.of_grid(inp, grid), mode, computed)
-        return _results(acc, outs, grid.shape, inp.weights is not None)
+        return _results(acc, outs, grid.shape, inp.weights is not None, inp.min_channels)
 
 
 def _computed(grid: PolarGrid, range_window_m) -> np.ndarray:
@@ -203,8 +203,9 @@ def _carrier(inp: BeamformInput, pos: np.ndarray) -> np.ndarray:
     return np.exp(1j * (carrier_phase(inp.centre_frequency_hz, fs, np.where(np.isfinite(k), k, 0)) + w * (pos - k)))
 
 
-def _results(acc: dict, outs: frozenset, shape: tuple, weighted: bool) -> Sums:
-    """Intensity ``|S|^2``, CF ``|S|^2 / (W Q)`` (0 where ``W Q = 0``) and the raw sums, as requested."""
+def _results(acc: dict, outs: frozenset, shape: tuple, weighted: bool, min_channels: int = 1) -> Sums:
+    """Intensity ``|S|^2``, CF ``|S|^2 / (W Q)`` (0 where ``W Q = 0`` or ``M < min_channels``) and the raw
+    sums, as requested."""
     s, q, wsum = acc["s"], acc["q"], acc["w"]
     inten = np.abs(s) ** 2
     result = Sums()
@@ -212,7 +213,7 @@ def _results(acc: dict, outs: frozenset, shape: tuple, weighted: bool) -> Sums:
         result.intensity = inten.reshape(shape)
     if "cf" in outs:
         with np.errstate(invalid="ignore", divide="ignore"):
-            cf = np.where((wsum > 0) & (q > 0), inten / (wsum * q), 0.0)
+            cf = np.where((wsum > 0) & (q > 0) & (acc["m"] >= min_channels), inten / (wsum * q), 0.0)
         result.cf = cf.reshape(shape)
     if "sums" in outs:
         result.s, result.q, result.m = s.reshape(shape), q.reshape(shape), acc["m"].reshape(shape)
