@@ -15,13 +15,7 @@
  * Compile-time macros (-D): REAL_T, REAL_IS_DOUBLE, TAPS, N_RANGE, APODIZE,
  * WANT_INTENSITY, WANT_CF, WANT_SUMS, MIN_CHANNELS (CF is 0 where M is below it).
  */
-#if REAL_IS_DOUBLE
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-#endif
-#ifndef MIN_CHANNELS
-#define MIN_CHANNELS 1
-#endif
-typedef REAL_T real_t;
+#include "common.h"
 
 __kernel void beam_to_grid(
     __global const real_t *restrict beam_s,   /* [2][n_beam][N_RANGE]: re plane, im plane */

@@ -43,13 +43,7 @@
  * below 1e-5 sample) the element offsets use the expansion
  *   d(o) = -p + (q - p^2) / (2 R) + p (q - p^2) / (2 R^2),  p = u.o, q = |o|^2.
  */
-#if REAL_IS_DOUBLE
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-#endif
-#ifndef MIN_CHANNELS
-#define MIN_CHANNELS 1
-#endif
-typedef REAL_T real_t;
+#include "common.h"
 
 #include "vector.h"
 #include "interp.h"

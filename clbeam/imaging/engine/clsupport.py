@@ -30,6 +30,6 @@ def kernel_source(name: str = "beamform.cl") -> str:
     """A kernel file's source with its headers inlined (avoids include paths)."""
     root = resources.files("clbeam.kernels")
     src = (root / name).read_text()
-    for header in ("vector.h", "interp.h"):
+    for header in ("common.h", "vector.h", "interp.h"):
         src = src.replace(f'#include "{header}"', (root / header).read_text())
     return src
