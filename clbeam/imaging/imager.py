@@ -327,6 +327,8 @@ class Imager:
             data = upsample_analytic(data, setting.upsample)
             fs *= setting.upsample
         fc = ping.pulse.centre_frequency_hz if ping.pulse is not None else None
+        if fc is None and band is not None:  # an explicit waveform: the carrier of the basebanded modes is its band's centre
+            fc = 0.5 * (band[0] + band[1])
         window = parse_window(self.options.apodization)
         weights = None if window.uniform else receive_weights(window, ping.element_pos_m[:, 1])[used]
         inp = BeamformInput(

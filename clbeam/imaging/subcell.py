@@ -99,11 +99,14 @@ class RefinedPeaks:
 def subcell_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray, mode: InterpMode, *,
                   cf_smooth: np.ndarray, intensity: np.ndarray | None, threshold: float) -> RefinedPeaks:
     """Peaks refined (:func:`refine_peaks`) and one entry kept per echo (:func:`merge_refined`:
-    within half a range step and a quarter of the band top's beam width), by decreasing refined CF."""
+    within half a range step (at least a quarter of the pulse's range resolution) and a quarter of the
+    band top's beam width), by decreasing refined CF."""
     refined = refine_peaks(engine, inp, grid, peaks, mode, cf_smooth=cf_smooth, intensity=intensity, threshold=threshold)
     if refined.range_m.size == 0:
         return refined
-    r_tol = 0.5 * _local_step(grid.ranges_m, refined.cell[:, 1])
+    # half a range step, or a quarter of the pulse's range resolution c / 2B on grids finer than it
+    resolution_m = inp.sound_speed_m_s / (2.0 * (inp.band_hz[1] - inp.band_hz[0])) if inp.band_hz else 0.0
+    r_tol = np.maximum(0.5 * _local_step(grid.ranges_m, refined.cell[:, 1]), 0.25 * resolution_m)
     a_tol = np.rad2deg(0.25 * beam_width_rad(inp) / np.maximum(np.cos(np.deg2rad(refined.angle_deg)), 0.1))
     merged = merge_refined(refined, r_tol, a_tol)
     return merged.take(np.argsort(-merged.cf_smooth, kind="stable"))
