@@ -137,7 +137,7 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
                 t[k] = t.get(k, 0.0) + v
             writer.write(ping.index, img)
             rows.extend(img.peaks)
-            truth = _truth_yz(ds, ping.index)
+            truth = truth_yz(ds, ping.index)
             s, o = score_targets(img.peaks, truth[:, 0], truth[:, 1], names, ping.index)
             scores += s
             others += o
@@ -149,7 +149,7 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
     return DemoResult(scores, others, files, t)
 
 
-def _truth_yz(ds, ping: int) -> np.ndarray:
+def truth_yz(ds, ping: int) -> np.ndarray:
     """``(k, 2)`` where a straight-ray image shows each target of ``ping`` (nearest point, refraction),
     else its crossing of the image plane."""
     key = "truth_target_image" if "truth_target_image_y" in ds.variables else "truth_target"

@@ -1,0 +1,46 @@
+"""Peaks per ping on the simulated Line 1 with the CF threshold alone and with
+the default detection test (the channel minimum and the level above the
+noise), and the pipeline detections kept (docs/peaks.md).
+
+    python bench/detection_line1.py [--pings 3]
+
+A peak is near a target when it is the demo's detection of it (within the
+demo's horizontal distance and 5 m of depth); the others are the rest.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--pings", type=int, default=3, help="pings of line1 to simulate (default 3)")
+    args = parser.parse_args()
+
+    from clbeam.evaluation.demo import score_targets, truth_yz
+    from clbeam.imaging.imager import Imager, ImagingOptions
+    from clbeam.io.pingfile import pings_from_dataset
+    from clbeam.model.grid import PolarGrid
+    from clbeam.sim import load_scene, simulate
+
+    n = args.pings
+    ds = simulate(load_scene("line1", pings=n, max_range_m=1100.0))
+    pings = pings_from_dataset(ds, "line1")
+    grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=1100.0, angles_deg=(-80.0, 80.0))
+    print("| peaks | per ping | near no target, per ping | targets detected |\n|---|---:|---:|---:|")
+    for label, opts in (("CF threshold only", ImagingOptions(min_channels=1, min_snr_db=None)),
+                        ("default test", ImagingOptions())):
+        imager = Imager(grid, opts)
+        total = others = hits = targets = 0
+        for i in range(n):
+            img = imager.image(pings.ping(i))
+            truth = truth_yz(ds, i)
+            scores, rest = score_targets(img.peaks, truth[:, 0], truth[:, 1], ds["target"].values, i)
+            total, others = total + len(img.peaks), others + len(rest)
+            hits, targets = hits + sum(s.detected for s in scores), targets + len(scores)
+        print(f"| {label} | {total / n:.0f} | {others / n:.0f} | {hits}/{targets} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
