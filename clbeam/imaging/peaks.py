@@ -24,7 +24,7 @@ from clbeam.constants import (
     SBP29_BAND_HZ,
     SOUND_SPEED_M_S,
 )
-from clbeam.imaging.detection import annotate_and_gate, noise_floor, smoothing_variance_factor
+from clbeam.imaging.detection import annotate_and_gate, noise_floor, smoothing_eigenvalues
 from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.mlh import (
     arc_tolerances,
@@ -142,10 +142,10 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
     if intensity is None:
         return rows
     band = context.band_hz
-    factor = smoothing_variance_factor(float(np.median(np.diff(grid.ranges_m))) if grid.shape[1] > 1 else 1.0,
-                                       float(band[1] - band[0]), context.sound_speed_m_s)
+    lam = smoothing_eigenvalues(float(np.median(np.diff(grid.ranges_m))) if grid.shape[1] > 1 else 1.0,
+                                float(band[1] - band[0]), context.sound_speed_m_s)
     return annotate_and_gate(rows, floor=noise_floor(intensity, cf_smooth), n_channels=context.n_channels,
-                             variance_factor=factor, min_snr_db=min_snr_db)
+                             eigenvalues=lam, min_snr_db=min_snr_db)
 
 
 def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options) -> list[dict]:

@@ -13,6 +13,7 @@ from clbeam.imaging.detection import (
     equivalent_threshold,
     false_alarm_probability,
     noise_floor,
+    smoothing_eigenvalues,
     smoothing_variance_factor,
 )
 from clbeam.imaging.imager import Imager, ImagingOptions
@@ -51,16 +52,19 @@ def test_noise_cf_follows_the_beta_model_before_and_after_smoothing(step_m):
     assert cf.mean() == pytest.approx(1 / M, rel=0.03)
     for x, tol in ((0.1, 0.15), (0.2, 0.3)):
         assert np.mean(cf > x) == pytest.approx((1 - x) ** (M - 1), rel=tol)
-    # smoothed: the moment-matched model, with the range correlation of the band
+    # smoothed: the variance from the window and the range correlation of the band ...
     factor = smoothing_variance_factor(step_m, BAND[1] - BAND[0], C)
     var_one = (M - 1) / (M * M * (M + 1))
     assert cf_s.var() == pytest.approx(var_one * factor, rel=0.15)
-    for p in (0.1, 0.01):
-        level = equivalent_threshold(M, factor, p)
-        assert np.mean(cf_s > level) == pytest.approx(p, rel=0.25)
-        assert false_alarm_probability(level, M, factor) == pytest.approx(p, rel=1e-6)
-    # further out the tail is heavier than the Beta's (docs): the rate at 1e-3 is 1-2.5 times it
-    assert 1e-3 <= np.mean(cf_s > equivalent_threshold(M, factor, 1e-3)) <= 2.5e-3
+    lam = smoothing_eigenvalues(step_m, BAND[1] - BAND[0], C)
+    assert np.sum(lam**2) == pytest.approx(factor, rel=1e-9) and np.sum(lam) == pytest.approx(1.0, rel=1e-9)
+    # ... and the tail, down to 1e-4 per cell
+    for p, tol in ((0.1, 0.2), (0.01, 0.25), (1e-3, 0.3), (1e-4, 0.4)):
+        level = equivalent_threshold(M, lam, p)
+        assert np.mean(cf_s > level) == pytest.approx(p, rel=tol)
+        assert false_alarm_probability(level, M, lam) == pytest.approx(p, rel=1e-6)
+    # one cell: the closed form itself
+    assert false_alarm_probability(0.2, M, np.array([1.0])) == pytest.approx(0.8 ** (M - 1), rel=0.02)
 
 
 def test_noise_floor_and_snr_of_an_echo():
@@ -91,3 +95,15 @@ def test_noise_free_data_keep_only_the_echoes_not_the_rounding():
     assert all(r["intensity_db"] > top - 80 for r in gated.peaks)
     for r, a in ((60.0, 10.0), (64.0, -25.0)):           # both scatterers still detected
         assert any(abs(p["range_m"] - r) < 0.2 and abs(p["angle_deg"] - a) < 1.0 for p in gated.peaks)
+
+
+def test_saddlepoint_tail_of_a_sum_of_exponentials_against_closed_forms():
+    from clbeam.imaging.detection import exponential_sum_sf
+
+    y = np.array([0.2, 0.5, 1.0, 2.0, 5.0, 20.0])
+    # one exponential; two equal ones (a gamma); three distinct (hypoexponential, partial fractions)
+    np.testing.assert_allclose(exponential_sum_sf(y, np.array([1.0])), np.exp(-y), rtol=0.05)
+    np.testing.assert_allclose(exponential_sum_sf(y, np.array([0.5, 0.5])), np.exp(-2 * y) * (1 + 2 * y), rtol=0.05)
+    lam = np.array([0.5, 0.3, 0.2])
+    exact = sum(np.prod([li / (li - lj) for lj in lam if lj != li]) * np.exp(-y / li) for li in lam)
+    np.testing.assert_allclose(exponential_sum_sf(y, lam), exact, rtol=0.05)
