@@ -35,6 +35,8 @@ PEAK_TABLE = {
     "z_m": (np.float64, "depth below the array reference point", "m"),
     "cf": (np.float64, "smoothed coherence factor at the peak", "1"),
     "intensity_db": (np.float64, "intensity |S|^2 at the peak", "dB re input units squared"),
+    "snr_db": (np.float64, "intensity over the ping's noise floor", "dB"),
+    "pfa": (np.float64, "probability that incoherent noise gives this smoothed CF or more, per cell", "1"),
     "file_index": (np.int32, "index of the input file (attribute input_files)", "1"),
     "file_ping": (np.int32, "ping index within the input file", "1"),
     "time_s": (np.float64, "ping time, seconds since 1970-01-01 UTC", "s"),

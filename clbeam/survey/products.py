@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clbeam.io.peaks import PEAK_COLUMNS
+from clbeam.io.peaks import DETECTION_COLUMNS, PEAK_COLUMNS
 from clbeam.io.survey_products import NAV_COLUMNS, OBJECT_COLUMNS, PeakTableWriter, write_object_tables
 from clbeam.io.survey_store import (
     iter_ledger_records,
@@ -227,10 +227,10 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
 
 
 def peak_csv_columns(nav: SurveyNavigation) -> list:
-    """Columns of the peaks CSV: :data:`clbeam.io.peaks.PEAK_COLUMNS`, the input
+    """Columns of the peaks CSV: :data:`clbeam.io.peaks.PEAK_COLUMNS`, the detection test's, the input
     file and ping time, the navigated or the along-track columns (both when
     some pings have navigation and some not), and ``object``."""
-    columns = list(PEAK_COLUMNS) + ["file_index", "file_ping", "time_s"]
+    columns = list(PEAK_COLUMNS) + list(DETECTION_COLUMNS) + ["file_index", "file_ping", "time_s"]
     if nav.has_nav.any():
         columns += list(NAV_COLUMNS)
     if (~nav.has_nav).any():
@@ -265,6 +265,8 @@ def _peak_columns(rec: dict, nav: SurveyNavigation, objects: np.ndarray) -> dict
     k = len(pk)
     g = rec["ping"]
     cols = {c: np.array([r[c] for r in pk], dtype=np.float64) for c in PEAK_COLUMNS if c != "ping"}
+    # ledgers written before the detection test have no such keys: NaN
+    cols.update({c: np.array([r.get(c, np.nan) for r in pk], dtype=np.float64) for c in DETECTION_COLUMNS})
     pings = np.full(k, g, dtype=np.int64)
     cols["ping"] = pings
     cols["file_index"] = np.full(k, rec["file_index"], dtype=np.int32)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import math
 import threading
 import time
 import uuid
@@ -34,7 +35,7 @@ import numpy as np
 from clbeam.errors import OptionError, require
 from clbeam.imaging.imager import Imager, ImagingOptions, check_grid_fits_memory
 from clbeam.io.images import image_arrays
-from clbeam.io.peaks import PEAK_COLUMNS
+from clbeam.io.peaks import DETECTION_COLUMNS, PEAK_COLUMNS
 from clbeam.io.pingfile import PingFile
 from clbeam.io.survey_store import (
     SurveyError,
@@ -155,9 +156,10 @@ def ping_record(img, ping, survey_ping: int, file_index: int) -> dict:
         JSON-serialisable: navigation (degree), time (ISO 8601, UTC), grid
         centre and source (m, earth frame), sound speed (m/s), pulse band
         (Hz), array width (m), and the peaks
-        (:data:`clbeam.io.peaks.PEAK_COLUMNS` besides ``ping``).
+        (:data:`clbeam.io.peaks.PEAK_COLUMNS` besides ``ping``, and
+        :data:`clbeam.io.peaks.DETECTION_COLUMNS`).
     """
-    keys = [k for k in PEAK_COLUMNS if k != "ping"]
+    keys = [k for k in PEAK_COLUMNS if k != "ping"] + list(DETECTION_COLUMNS)
     ctx = img.context
     source = ctx.source_yz_m or (None, None)
     return {
@@ -167,7 +169,7 @@ def ping_record(img, ping, survey_ping: int, file_index: int) -> dict:
         "source_y_m": source[0], "source_z_m": source[1], "sound_speed_m_s": float(ctx.sound_speed_m_s),
         "band_hz": [float(b) for b in ctx.band_hz], "array_width_m": float(ctx.array_width_m),
         "n_channels_used": int(img.n_channels_used),
-        "peaks": [{k: float(r[k]) for k in keys} for r in img.peaks],
+        "peaks": [{k: float(r.get(k, math.nan)) for k in keys} for r in img.peaks],
     }
 
 

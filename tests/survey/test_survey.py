@@ -134,7 +134,7 @@ def test_survey_peaks_equal_the_imagers_peaks_of_each_ping(line, reference):
             expected = imager.image(f.ping(i)).peaks
         got = peaks.where(peaks["ping"] == survey_ping, drop=True)
         assert got.sizes["peak"] == len(expected) > 0
-        for col in ("range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db"):
+        for col in ("range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db", "snr_db", "pfa"):
             np.testing.assert_array_equal(got[col].values, [r[col] for r in expected])
         assert set(got["file_index"].values.tolist()) == {k} and set(got["file_ping"].values.tolist()) == {i}
     # the CSV beside the store holds the same rows, readable by clbeam.io.peaks.read_peaks_csv
