@@ -145,11 +145,10 @@ def annotate_and_gate(rows: list, *, floor: float, n_channels: int | None, eigen
     probability of its smoothed CF over ``n_channels``, NaN when unknown); rows below ``min_snr_db``
     left out (``None``: none)."""
     floor_db = 10 * math.log10(floor) if floor > 0 and math.isfinite(floor) else math.nan
-    out = []
-    for row in rows:
-        snr = row["intensity_db"] - floor_db if math.isfinite(floor_db) else math.nan
-        if min_snr_db is not None and math.isfinite(snr) and snr < min_snr_db:
-            continue
-        pfa = float(false_alarm_probability(row["cf"], n_channels, eigenvalues)) if n_channels else math.nan
-        out.append({**row, "snr_db": float(snr), "pfa": pfa})
-    return out
+    snr = [row["intensity_db"] - floor_db if math.isfinite(floor_db) else math.nan for row in rows]
+    kept = [(row, s) for row, s in zip(rows, snr) if min_snr_db is None or math.isnan(s) or s >= min_snr_db]
+    if n_channels and kept:  # every row's probability in one call
+        pfa = false_alarm_probability(np.array([row["cf"] for row, _ in kept]), n_channels, eigenvalues)
+    else:
+        pfa = np.full(len(kept), math.nan)
+    return [{**row, "snr_db": float(s), "pfa": float(p)} for (row, s), p in zip(kept, np.atleast_1d(pfa))]
