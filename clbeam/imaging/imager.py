@@ -339,6 +339,13 @@ class Imager:
             min_channels=min_channels_of(self.options.min_channels, data.shape[0]))
         return self._with_tables(ping, inp, float(centre[2])), setting
 
+    def setting_of(self, ping: Ping) -> Setting:
+        """The setting ``ping`` is imaged with (:meth:`setting` from its usable channels)."""
+        used = np.asarray(ping.channel_valid, dtype=bool)
+        centre = np.r_[0.0, self.grid.centre(tuple(ping.source_pos_m[1:]))]
+        return self.setting(ping.element_pos_m[used] - centre, pulse_band_hz(ping.pulse, ping.sample_rate_hz), ping,
+                            ping.samples.shape[1])
+
     def setting(self, offsets_m: np.ndarray, band_hz, ping: Ping, n_samples: int) -> Setting:
         """Mode, upsampling and beam sampling for a ping of this array, band and sampling
         (:func:`clbeam.imaging.engine.errormodel.choose_setting`; cached, logged once).

@@ -198,6 +198,10 @@ class VerticalBeam:
             im = self._imagers[sound_speed_m_s] = Imager(grid, self.options, engine=self.engine)
         return im
 
+    def setting(self, ping: Ping) -> str:
+        """The mode, upsampling and beams ``ping`` is imaged with (``auto`` resolved), in one line."""
+        return self.imager(ping.sound_speed_m_s).setting_of(ping).describe()
+
     def __call__(self, ping: Ping) -> BeamTrace:
         """The vertical beam of ``ping``: ``S / M`` at each trace sample."""
         img = self.imager(ping.sound_speed_m_s).image(ping)

@@ -160,7 +160,8 @@ def _header_lines(source: Path, pings: PingFile, axis: TraceAxis, *, interp: str
         f"PINGS: {n}  TRACES: {n * (2 if analytic else 1)}  SAMPLES/TRACE: {axis.n_samples}",
         f"SAMPLE INTERVAL: {axis.interval_us} US  DELAY (T0): {axis.delay_ms} MS  FORMAT 5 IEEE FLOAT",
         "BEAM: 0 DEG FROM NADIR, EARTH-REFERENCED (ROLL, HEAVE COMPENSATED; PITCH IGNORED)",
-        f"DELAY-AND-SUM OF PULSE-COMPRESSED ANALYTIC CHANNELS, INTERPOLATION {interp.upper()}",
+        "DELAY-AND-SUM OF PULSE-COMPRESSED ANALYTIC CHANNELS",
+        f"INTERPOLATION {interp.upper()}"[:80],
         "S = COHERENT SUM OVER THE M CONTRIBUTING CHANNELS; TRACE = S/M, 0 WHERE M = 0",
         layout,
         "SAMPLE K: TWO-WAY TIME DELAY + K*INTERVAL; RANGE FROM SOURCE = C*T/2",
@@ -292,7 +293,8 @@ def write_profile(pings_path, segy_path, *, png_path=None, plot: bool = True, ma
     with PingFile(pings_path) as pings:
         axis = TraceAxis.for_file(pings, max_range_m=max_range_m)
         beam = VerticalBeam(axis, interp=interp, backend=backend, device=device, engine=engine)
-        writer = _open_writer(segy_path, pings_path, pings, axis, interp=interp, analytic=analytic)
+        setting = beam.setting(pings.ping(0)) if interp == "auto" else interp  # the header names what is used
+        writer = _open_writer(segy_path, pings_path, pings, axis, interp=setting, analytic=analytic)
         try:
             with writer:
                 traced = _write_traces(pings, beam, writer, keep_rows=png is not None, progress=progress)

@@ -274,3 +274,18 @@ def test_failure_midway_leaves_no_partial_segy(point_file, tmp_path, monkeypatch
     with pytest.raises(ClbeamError, match="ping 1 failed"):
         run_profile([point_file, "-o", out, "-q"])
     assert calls == [0, 1] and not out.exists() and not out.with_suffix(".png").exists()
+
+
+def test_segy_header_names_the_setting_auto_chose(point_file, tmp_path):
+    from clbeam.imaging.vertical_beam import TraceAxis, VerticalBeam
+    from clbeam.io.pingfile import PingFile
+    from clbeam.seabed.profile import write_profile
+
+    out = write_profile(point_file, tmp_path / "auto.sgy", plot=False).segy_path
+    with segyio.open(out, ignore_geometry=True) as f:
+        lines = [bytes(f.text[0]).decode("ascii")[80 * k:80 * (k + 1)].strip() for k in range(40)]
+    line = next(x for x in lines if "INTERPOLATION" in x)
+    assert "AUTO" not in line and "PREDICTED" in line  # a mode, its beams and the predicted error, not 'auto'
+    with PingFile(point_file) as pf:
+        ping, axis = pf.ping(0), TraceAxis.for_file(pf)
+    assert VerticalBeam(axis, interp="auto").setting(ping).upper()[:40] in line
