@@ -327,11 +327,15 @@ def _whole_ping(eng, ping, grid: PolarGrid, repeats: int) -> tuple:
     ):
         imager = Imager(grid, opts, engine=eng)
         imager.image(ping)
-        t = best_time(lambda imager=imager: imager.image(ping), max(1, repeats - 1))
+        runs = []
+        for _ in range(max(1, repeats - 1)):
+            t0 = time.perf_counter()
+            img = imager.image(ping)
+            runs.append((time.perf_counter() - t0, img.timings_s))
+        t, stages = min(runs, key=lambda run: run[0])  # the stages of the fastest run, which is the one reported
         skipping.append({"what": label, "ms_per_ping": 1e3 * t})
         if label.startswith("full"):
-            img = imager.image(ping)
-            whole = {k: 1e3 * v for k, v in img.timings_s.items()}
+            whole = {k: 1e3 * v for k, v in stages.items()}
             whole["total_ms"] = 1e3 * t
     return whole, skipping
 
@@ -393,7 +397,7 @@ def target_rows(result: BenchResult) -> list[tuple[str, float, float, str]]:
         r = auto[-40.0]
         out += [("default setting: beamforming", r.ms_per_ping, 250.0, "ms"),
                 ("default setting: intensity error", r.intensity_error_db, -40.0, "dB"),
-                ("default setting: max |ΔCF|", r.max_abs_dcf, 0.02, ""),
+                ("default setting: max abs ΔCF", r.max_abs_dcf, 0.02, ""),
                 ("default setting: x NumPy reference", r.x_numpy, 250.0, "x"),
                 ("default setting: x numba baseline", r.x_numba, 10.0, "x")]
     if -60.0 in auto:
