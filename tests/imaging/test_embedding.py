@@ -76,8 +76,8 @@ def rss_bytes() -> int:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-def soak(pings, n):
-    imager = Imager(GRID, ImagingOptions(interp="linear"))
+def soak(pings, n, refine=True):
+    imager = Imager(GRID, ImagingOptions(interp="linear", refine_peaks=refine))
     for i in range(20):  # warm-up: kernels built, buffers and allocator pools at size
         imager.image(pings[i % len(pings)])
     base = rss_bytes()
@@ -96,7 +96,8 @@ def test_soak_memory_is_flat_after_warm_up(pings):
 
 @pytest.mark.slow
 def test_soak_2000_pings_memory_is_flat(pings):
-    base, peak = soak(pings, 2000)
+    # the grid chain alone (the 300-ping soak above covers the sub-cell refinement too): half the time
+    base, peak = soak(pings, 2000, refine=False)
     assert peak < base * 1.05, f"resident memory grew from {base / 2**20:.1f} to {peak / 2**20:.1f} MiB"
 
 
