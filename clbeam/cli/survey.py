@@ -12,11 +12,13 @@ from clbeam.cli.options import (
 )
 from clbeam.constants import MAP_THRESHOLD
 from clbeam.errors import require
+from clbeam.survey.line_options import LineOptions
 
 NAME = "survey"
 HELP = "image a whole survey into coherence peaks (and images): resumable, parallel"
 DESCRIPTION = ("Image every ping of the input files; write the coherence peaks (Zarr, CSV, GeoJSON), the "
-               "persistence map and the associated objects; resume after any interruption.  See docs/survey.md.")
+               "persistence map, the associated objects and the lines (pipelines and the rest, scored); resume "
+               "after any interruption.  See docs/survey.md and docs/lines.md.")
 
 
 def add_arguments(p) -> None:
@@ -24,7 +26,8 @@ def add_arguments(p) -> None:
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="ping files (NetCDF4 or Zarr, SPEC §7), in survey order")
     p.add_argument("-o", "--output", required=True, metavar="OUT.zarr",
                    help="survey store; products OUT.peaks.csv, OUT.peaks.geojson, OUT.objects.csv, "
-                        "OUT.objects.geojson, OUT.map.png, OUT.persistence.png beside it")
+                        "OUT.objects.geojson, OUT.lines.csv, OUT.lines.geojson, OUT.map.png, OUT.persistence.png "
+                        "beside it")
     add_grid_options(p)
     add_imaging_options(p)
     g = p.add_argument_group("survey")
@@ -48,6 +51,31 @@ def add_arguments(p) -> None:
     a.add_argument("--min-pings", type=int, default=5, metavar="N", help="pings an object needs (default 5)")
     a.add_argument("--speed", type=float, default=None, metavar="M/S",
                    help="ship speed (m/s) for the along-track distance of pings without navigation")
+    add_line_options(p)
+
+
+def add_line_options(p) -> None:
+    """The options of the lines (products only: a rerun may change them without re-imaging)."""
+    d = LineOptions()
+    a = p.add_argument_group("lines (docs/lines.md)")
+    a.add_argument("--line-min-score", type=float, default=d.min_score, metavar="S",
+                   help=f"score a line needs: -log10 of the expected chance lines as good per km "
+                        f"(default {d.min_score:g}: about 0.1 false line per km)")
+    a.add_argument("--line-gate", type=float, default=d.across_gate_m, metavar="M",
+                   help=f"largest cross-track distance of a detection from its line (m, default {d.across_gate_m:g})")
+    a.add_argument("--line-max-gap", type=int, default=d.max_gap_pings, metavar="N",
+                   help=f"imaged pings in a row without a detection a line may bridge (default {d.max_gap_pings})")
+    a.add_argument("--line-max-angle", type=float, default=d.max_angle_deg, metavar="DEG",
+                   help=f"largest heading of a line relative to the track (degree, default {d.max_angle_deg:g})")
+    a.add_argument("--truth", action="store_true",
+                   help="score the lines against the truth the simulator wrote in the input files "
+                        "(pipelines found, fragments, position and burial errors, false lines per km)")
+
+
+def line_options_from_args(args):
+    """:class:`LineOptions` from parsed arguments."""
+    return LineOptions(min_score=args.line_min_score, across_gate_m=args.line_gate,
+                       max_gap_pings=args.line_max_gap, max_angle_deg=args.line_max_angle)
 
 
 def options_from_survey_args(args, scan):
@@ -60,7 +88,7 @@ def options_from_survey_args(args, scan):
         association=AssociationOptions(threshold=args.map_threshold, link_distance_m=args.link_distance,
                                        depth_tolerance_m=args.link_depth, max_gap_pings=args.max_gap,
                                        min_pings=args.min_pings),
-        speed_m_s=args.speed)
+        lines=line_options_from_args(args), speed_m_s=args.speed)
 
 
 def summary_lines(res) -> list:
@@ -80,6 +108,9 @@ def summary_lines(res) -> list:
         lines.append(f"objects: {len(pr.objects)} from {pr.n_detections} detections -> {f['objects_csv'].name}"
                      + (f", {f['objects_geojson'].name}" if pr.navigation else "")
                      + f"; map -> {f['map_png'].name}, {f['persistence_png'].name}")
+        lines.append(f"lines: {pr.n_pipelines} pipeline(s) among {len(pr.lines.rows)} line(s) scoring "
+                     f">= {pr.lines.min_score:g} -> {f['lines_csv'].name}"
+                     + (f", {f['lines_geojson'].name}" if pr.lines.geo_paths is not None else ""))
     if res.failures:
         by_file = {}
         for fl in res.failures:

@@ -2,8 +2,9 @@
 
 :class:`PeakTableWriter` streams the georeferenced peaks of a survey to the
 store's group ``peaks``, to ``X.peaks.csv`` and to ``X.peaks.geojson``;
-:func:`write_object_tables` writes the associated objects to the group
-``objects``, ``X.objects.csv`` and ``X.objects.geojson``.  Text products are
+:func:`write_feature_tables` writes the associated objects to the group
+``objects``, ``X.objects.csv`` and ``X.objects.geojson``, and the lines to
+``lines``, ``X.lines.csv`` and ``X.lines.geojson``.  Text products are
 written under temporary names and renamed, so a reader sees the old file or
 the new one, never a part.  Floats are written with full round-trip
 precision; an unknown value is an empty CSV cell and a GeoJSON ``null``.
@@ -49,6 +50,7 @@ PEAK_TABLE = {
     "northing_m": (np.float64, "UTM northing of the peak (zone: attribute utm_epsg)", "m"),
     "along_track_m": (np.float64, "along-track distance from ping time x ship speed (no navigation)", "m"),
     "object": (np.int64, "associated object (-1: none, or CF at or below the map threshold)", "1"),
+    "line": (np.int64, "line the detection lies on (-1: none, or CF at or below the map threshold)", "1"),
 }
 """Columns of the group ``peaks``: dtype, long name, units."""
 NAV_COLUMNS = ("ping_latitude_deg", "ping_longitude_deg", "heading_deg", "peak_latitude_deg",
@@ -57,6 +59,13 @@ NAV_COLUMNS = ("ping_latitude_deg", "ping_longitude_deg", "heading_deg", "peak_l
 OBJECT_COLUMNS = ("object", "n_pings", "n_detections", "first_ping", "last_ping", "length_m", "mean_cf", "max_cf",
                   "mean_y_m", "mean_z_m")
 """Columns of every object row (the first five are integers)."""
+LINE_COLUMNS = ("line", "kind", "n_pings", "first_ping", "last_ping", "length_m", "heading_deg", "mean_cf", "score",
+                "burial_m", "burial_std_m", "mean_y_m", "mean_z_m", "detected_fraction", "burial_error_m",
+                "burial_resolved")
+"""Columns of every line row (``kind`` a string; ``line``, ``n_pings``, the pings and ``burial_resolved`` integers)."""
+LINE_INTEGERS = ("line", "n_pings", "first_ping", "last_ping", "burial_resolved")
+LINE_KINDS = ("pipeline", "seabed", "water", "subbottom", "seabed-nadir", "subbottom-nadir", "unknown")
+"""Kinds of a line (:func:`clbeam.survey.line_products.line_kind`), in the order of their stored codes."""
 
 
 def csv_cell(v) -> str:
@@ -182,47 +191,66 @@ class PeakTableWriter:
                 p.unlink()
 
 
-def write_object_tables(output: Path, files: dict, rows: list, columns: list, lines: list | None) -> None:
-    """Write the objects: group ``objects``, ``objects_csv`` and ``objects_geojson``.
+def write_feature_tables(output: Path, paths: tuple, group: str, rows: list, columns: list, integers,
+                         coords: list | None, title: str, categories: dict | None = None) -> None:
+    """Write a table of features (objects, lines): a Zarr group, a CSV and a GeoJSON.
 
     Parameters
     ----------
     output : pathlib.Path
         The store.
-    files : dict
-        ``objects_csv`` and ``objects_geojson`` paths.
+    paths : (pathlib.Path, pathlib.Path)
+        The CSV and the GeoJSON.
+    group : str
+        The store's group (``objects``, ``lines``), one entry per row along
+        the dimension ``object``, ``line``; a string column is stored as
+        integers with CF ``flag_values`` and ``flag_meanings``.
     rows : list of dict
-        One row per object, with every name of ``columns``.
+        One row per feature, with every name of ``columns``.
     columns : list of str
-        :data:`OBJECT_COLUMNS` first (integers), then float columns.
-    lines : list or None
-        Per object, the ``[longitude, latitude]`` (degree) of its path: a
+        Columns: ``integers`` as integers, strings as such, the rest floats.
+    coords : list or None
+        Per feature, the ``[longitude, latitude]`` (degree) of its path: a
         GeoJSON LineString (a Point for one position).  ``None``: no
-        navigation, and an existing ``objects_geojson`` is removed.
+        navigation, and an existing GeoJSON is removed.
+    title : str
+        Name of the GeoJSON feature collection.
+    categories : dict, optional
+        Per string column, its possible values (their order gives the
+        stored codes); other string columns are coded in sorted order.
     """
     import xarray as xr
 
-    tmp = temporary_path(files["objects_csv"])
+    csv_path, geojson_path = paths
+    tmp = temporary_path(csv_path)
     with open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(columns)
         for r in rows:
-            w.writerow([csv_cell(r[c]) for c in columns])
-    os.replace(tmp, files["objects_csv"])
-    if lines is not None:
+            w.writerow([r[c] if isinstance(r[c], str) else csv_cell(r[c]) for c in columns])
+    os.replace(tmp, csv_path)
+    if coords is not None:
         feats = []
-        for coords, r in zip(lines, rows):
-            geom = {"type": "LineString", "coordinates": coords} if len(coords) > 1 else \
-                {"type": "Point", "coordinates": coords[0]}
-            feats.append({"type": "Feature", "geometry": geom, "properties": {c: json_number(r[c]) for c in columns}})
-        write_atomic(files["objects_geojson"], json.dumps(
-            {"type": "FeatureCollection", "name": "clbeam associated objects", "features": feats}).encode())
+        for xy, r in zip(coords, rows):
+            geom = {"type": "LineString", "coordinates": xy} if len(xy) > 1 else {"type": "Point", "coordinates": xy[0]}
+            feats.append({"type": "Feature", "geometry": geom, "properties": {
+                c: r[c] if isinstance(r[c], str) else json_number(r[c]) for c in columns}})
+        write_atomic(geojson_path, json.dumps({"type": "FeatureCollection", "name": title, "features": feats}).encode())
     else:
         with contextlib.suppress(FileNotFoundError):
-            files["objects_geojson"].unlink()
-    integer = set(OBJECT_COLUMNS[:5])
-    data = {c: (("object",), np.array([r[c] for r in rows], dtype=np.int64 if c in integer else np.float64))
-            for c in columns}
+            geojson_path.unlink()
+    integer = set(integers)
+    dim = group[:-1]  # objects -> object, lines -> line
+    data = {}
+    for c in columns:
+        vals = [r[c] for r in rows]
+        if c in (categories or {}) or (vals and isinstance(vals[0], str)):
+            # a category as a small integer with CF flag attributes (Zarr v3 has no stable string type)
+            names = list((categories or {}).get(c) or sorted(set(vals)))
+            data[c] = xr.Variable((dim,), np.array([names.index(v) for v in vals], dtype=np.int8),
+                                  {"flag_values": list(range(len(names))), "flag_meanings": " ".join(names)})
+        else:
+            data[c] = ((dim,), np.array(vals, dtype=np.int64 if c in integer else np.float64))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        xr.Dataset(data).to_zarr(output, group="objects", mode="w", consolidated=False)
+        xr.Dataset(data).to_zarr(output, group=group, mode="w", consolidated=False)

@@ -3,7 +3,7 @@
 A survey store (``clbeam survey``, :func:`clbeam.survey.run_survey`) is an
 image store in the layout of :class:`clbeam.io.images.ImageWriter` (so
 :func:`clbeam.io.images.open_images` and ``clbeam peaks`` read it) with
-per-ping bookkeeping variables, the groups ``peaks`` and ``objects``, and the
+per-ping bookkeeping variables, the groups ``peaks``, ``objects`` and ``lines``, and the
 folder ``survey_state/``:
 
 * ``survey_state/pings/<ping:09d>.json``: one ledger file per committed
@@ -47,7 +47,8 @@ STATE_DIR = "survey_state"
 """Folder, inside the output store, of the resume state."""
 LEDGER_DIR = f"{STATE_DIR}/pings"
 """Folder of the per-ping ledger files ``<ping:09d>.json``."""
-PRODUCT_SUFFIXES = ("peaks.csv", "peaks.geojson", "objects.csv", "objects.geojson", "map.png", "persistence.png")
+PRODUCT_SUFFIXES = ("peaks.csv", "peaks.geojson", "objects.csv", "objects.geojson", "lines.csv", "lines.geojson",
+                    "map.png", "persistence.png")
 """Files written beside the store ``X.zarr``: ``X.<suffix>``."""
 
 _LEDGER_NAME = re.compile(r"^(\d{9})\.json$")
@@ -74,7 +75,8 @@ def product_paths(output) -> dict:
     -------
     dict of str to pathlib.Path
         ``peaks_csv``, ``peaks_geojson``, ``objects_csv``,
-        ``objects_geojson``, ``map_png``, ``persistence_png``: ``X.peaks.csv``
+        ``objects_geojson``, ``lines_csv``, ``lines_geojson``, ``map_png``,
+        ``persistence_png``: ``X.peaks.csv``
         and so on.
     """
     stem = Path(output).with_suffix("")
@@ -378,7 +380,7 @@ def open_survey(output, group: str | None = None):
     ----------
     output : path-like
         The store.
-    group : {None, "peaks", "objects"}
+    group : {None, "peaks", "objects", "lines"}
         The per-ping variables and images (default), or a product group.
 
     Returns

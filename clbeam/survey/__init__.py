@@ -37,6 +37,8 @@ _EXPORTS = {
     "clbeam.survey.association": ("associate", "describe_objects"),
     "clbeam.survey.georef": ("course_over_ground_deg", "peak_positions", "to_utm", "utm_epsg"),
     "clbeam.survey.inputs": ("Failure", "InputFile", "ScanResult", "scan_inputs"),
+    "clbeam.survey.line_options": ("LineOptions",),
+    "clbeam.survey.line_products": ("LINE_KINDS", "SurveyLines", "survey_lines"),
     "clbeam.survey.options": ("AssociationOptions", "SurveyOptions", "survey_parameters"),
     "clbeam.survey.plots": ("plot_survey_map",),
     "clbeam.survey.products": ("SurveyProducts", "finalize_survey"),

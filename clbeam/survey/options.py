@@ -23,6 +23,7 @@ from clbeam.io.schema import image_variables
 from clbeam.io.survey_store import SURVEY_FORMAT
 from clbeam.model.grid import PolarGrid
 from clbeam.survey.inputs import ScanResult
+from clbeam.survey.line_options import LineOptions
 
 
 @dataclass(frozen=True)
@@ -95,6 +96,8 @@ class SurveyOptions:
     association : AssociationOptions
         Map threshold and association rule (products only: a rerun may
         change them without ``restart``).
+    lines : LineOptions
+        How detections become lines (products only, as ``association``).
     speed_m_s : float or None
         Ship speed (m/s) for the along-track distance of pings without
         navigation: ``speed x (ping time - first ping time)``.
@@ -107,6 +110,7 @@ class SurveyOptions:
     images: bool = False
     block_pings: int = 8
     association: AssociationOptions = field(default_factory=AssociationOptions)
+    lines: LineOptions = field(default_factory=LineOptions)
     speed_m_s: float | None = None
 
     def __post_init__(self):

@@ -40,16 +40,22 @@ def plot_persistence(path, det_ping, det_y, det_cf, threshold: float) -> Path:
     return path
 
 
-def plot_survey_map(path, *, nav: SurveyNavigation, det_ping, det_cf, det_pos, objects, threshold: float,
+#: colour of each line kind on the map
+KIND_COLOURS = {"pipeline": "k", "seabed": "tab:green", "water": "tab:cyan", "subbottom": "tab:brown",
+                "seabed-nadir": "tab:olive", "subbottom-nadir": "tab:olive", "unknown": "tab:gray"}
+
+
+def plot_survey_map(path, *, nav: SurveyNavigation, det_ping, det_cf, det_pos, lines, threshold: float,
                     grid: PolarGrid | None = None) -> Path:
     """Plan-view persistence map (Holland et al. 2024, Figs. 9-10).
 
     Coherence peaks above ``threshold`` at their georeferenced positions,
     coloured by CF, over the ship track (blue) with the broadside directions
     of every 30th ping (2 minutes at the paper's 4 s interval) out to the
-    grid's largest horizontal range, and each associated object's path
-    (black) with its number.  Without navigation the axes are along-track
-    distance (ping time x speed) and cross-track offset.
+    grid's largest horizontal range, and each line's path labelled with its
+    number and kind (pipelines black and thick).  Without navigation the
+    axes are along-track distance (ping time x speed) and cross-track
+    offset.
 
     Parameters
     ----------
@@ -61,8 +67,8 @@ def plot_survey_map(path, *, nav: SurveyNavigation, det_ping, det_cf, det_pos, o
         ``(k,)`` survey ping and CF of each detection.
     det_pos : numpy.ndarray
         ``(k, 2)`` detection positions in the association frame (m).
-    objects : list of dict
-        :func:`clbeam.survey.association.describe_objects`.
+    lines : SurveyLines
+        :func:`clbeam.survey.line_products.survey_lines`.
     threshold : float
         The map threshold (CF).
     grid : PolarGrid, optional
@@ -88,12 +94,15 @@ def plot_survey_map(path, *, nav: SurveyNavigation, det_ping, det_cf, det_pos, o
     if len(x):
         sc = ax.scatter(x, y, c=det_cf, s=8, cmap="plasma", vmin=threshold, vmax=1, zorder=3)
         fig.colorbar(sc, ax=ax, label="coherence factor", shrink=0.8)
-    for ob in objects:
-        p = ob["path"] - shift
-        ax.plot(p[:, 0], p[:, 1], color="k", lw=1.0, zorder=4)
-        ax.annotate(str(ob["object"]), p[-1], fontsize=8, xytext=(3, 3), textcoords="offset points")
-    ax.set_title(f"coherence peaks, CF > {threshold:g}: {len(x)} detections in {len(np.unique(det_ping))} pings, "
-                 f"{len(objects)} object(s)")
+    for row, p in zip(lines.rows, lines.paths):
+        p = p - shift
+        pipe = row["kind"] == "pipeline"
+        ax.plot(p[:, 0], p[:, 1], color=KIND_COLOURS.get(row["kind"], "tab:gray"), lw=2.0 if pipe else 1.0, zorder=4)
+        ax.annotate(f"{row['line']} {row['kind']}", p[-1], fontsize=8, xytext=(3, 3), textcoords="offset points",
+                    fontweight="bold" if pipe else "normal")
+    n_pipe = sum(r["kind"] == "pipeline" for r in lines.rows)
+    ax.set_title(f"coherence peaks, CF > {threshold:g}: {len(x)} detections in {len(np.unique(det_ping))} pings; "
+                 f"{len(lines.rows)} line(s), {n_pipe} pipeline(s)")
     ax.legend(loc="best", fontsize=8)
     return _save(plt, fig, path)
 

@@ -2,13 +2,15 @@
 
 :func:`finalize_survey` reads the ledger twice, one ping at a time.  The
 first pass gathers the per-ping values (navigation, grid centre, source,
-sound speed) and the detections above the map threshold, the only
-survey-wide arrays kept (about 200 bytes per detection and 4 per peak);
-the detections are associated into objects
-(:func:`clbeam.survey.association.associate`).  The second pass
+sound speed, the seabed fitted to the ping's peaks) and the detections
+above the map threshold, the only survey-wide arrays kept (about 200 bytes
+per detection and 4 per peak); the detections are associated into objects
+(:func:`clbeam.survey.association.associate`) and tracked into lines
+(:func:`clbeam.survey.line_products.survey_lines`).  The second pass
 georeferences every peak and streams it to the group ``peaks``, the CSV and
 the GeoJSON (:class:`clbeam.io.survey_products.PeakTableWriter`).  Then the
-objects, the store's per-ping variables and attributes, and the figures.
+objects, the lines, the store's per-ping variables and attributes, and the
+figures.
 Every product holds each committed ping exactly once.
 """
 
@@ -24,7 +26,14 @@ from pathlib import Path
 import numpy as np
 
 from clbeam.io.peaks import DETECTION_COLUMNS, PEAK_COLUMNS
-from clbeam.io.survey_products import NAV_COLUMNS, OBJECT_COLUMNS, PeakTableWriter, write_object_tables
+from clbeam.io.survey_products import (
+    LINE_INTEGERS,
+    LINE_KINDS,
+    NAV_COLUMNS,
+    OBJECT_COLUMNS,
+    PeakTableWriter,
+    write_feature_tables,
+)
 from clbeam.io.survey_store import (
     iter_ledger_records,
     ledger_names,
@@ -33,8 +42,10 @@ from clbeam.io.survey_store import (
     update_store,
 )
 from clbeam.survey.association import associate, describe_objects
+from clbeam.survey.burial import seabed_line
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.inputs import one_line
+from clbeam.survey.line_products import LineDetections, SurveyLines, line_rows, survey_lines
 from clbeam.survey.options import SurveyOptions
 from clbeam.survey.plots import plot_persistence, plot_survey_map
 
@@ -65,6 +76,8 @@ class SurveyProducts:
         Peaks above the map threshold.
     objects : list of dict
         :func:`clbeam.survey.association.describe_objects`.
+    lines : SurveyLines
+        The lines (:func:`clbeam.survey.line_products.survey_lines`).
     navigation : bool
         Some ping has a position (peaks carry latitude and longitude; GeoJSON written).
     utm_epsg : int or None
@@ -77,9 +90,15 @@ class SurveyProducts:
     n_peaks: int
     n_detections: int
     objects: list
+    lines: SurveyLines
     navigation: bool
     utm_epsg: int | None
     files: dict
+
+    @property
+    def n_pipelines(self) -> int:
+        """Lines of the kind ``pipeline``."""
+        return sum(r["kind"] == "pipeline" for r in self.lines.rows)
 
 
 @dataclass
@@ -106,6 +125,7 @@ class _FirstPass:
     detections: _Detections
     n_rows: int
     sonar: dict
+    seabed: np.ndarray = None
 
 
 def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyProducts:
@@ -141,23 +161,32 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     nav, det = first.nav, first.detections
     nav.finish(first.per_ping["imaged"])
     _associate(det, nav, assoc)
-    row_object = np.full(first.n_rows, -1, dtype=np.int32)
-    row_object[det.row] = det.labels
+    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf), first.seabed,
+                         np.stack([first.per_ping["centre_y"], first.per_ping["centre_z"]], axis=1),
+                         first.per_ping["imaged"], nav, options.lines)
+    row_labels = {c: np.full(first.n_rows, -1, dtype=np.int64) for c in ("object", "line")}
+    row_labels["object"][det.row] = det.labels
+    row_labels["line"][det.row] = lines.labels
     files = product_paths(output)
-    _write_peaks(output, names, files, options, nav, row_object)
-    rows, columns, lines = object_rows(det.objects, nav, det.ping, det.labels, det.cols)
-    write_object_tables(output, files, rows, columns, lines)
+    _write_peaks(output, names, files, options, nav, row_labels)
+    rows, columns, paths = object_rows(det.objects, nav, det.ping, det.labels, det.cols)
+    write_feature_tables(output, (files["objects_csv"], files["objects_geojson"]), "objects", rows, columns,
+                         OBJECT_COLUMNS[:5], paths, "clbeam associated objects")
+    rows, columns, paths = line_rows(lines, nav)
+    write_feature_tables(output, (files["lines_csv"], files["lines_geojson"]), "lines", rows, columns,
+                         LINE_INTEGERS, paths, "clbeam lines", categories={"kind": LINE_KINDS})
     n_imaged = int(first.per_ping["imaged"].sum())
     update_store(output, {"latitude": nav.lat, "longitude": nav.lon, "heading": nav.heading, "time": nav.time_s,
                           **first.per_ping}, _store_attrs(first, options, failures))
     try:
         plot_survey_map(files["map_png"], nav=nav, det_ping=det.ping, det_cf=det.cf, det_pos=det.pos,
-                        objects=det.objects, threshold=assoc.threshold, grid=options.grid)
+                        lines=lines, threshold=assoc.threshold, grid=options.grid)
         plot_persistence(files["persistence_png"], det.ping, det.y, det.cf, assoc.threshold)
     except Exception as exc:  # a figure must not lose the tables written above
         log.warning("survey figures not written: %s", one_line(exc))
     return SurveyProducts(n_imaged=n_imaged, n_peaks=first.n_rows, n_detections=int(det.ping.size),
-                          objects=det.objects, navigation=bool(nav.has_nav.any()), utm_epsg=nav.epsg, files=files)
+                          objects=det.objects, lines=lines, navigation=bool(nav.has_nav.any()), utm_epsg=nav.epsg,
+                          files=files)
 
 
 def _nan(v) -> float:
@@ -196,6 +225,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
     det_ping, det_row = array.array("q"), array.array("q")
     det_y, det_z, det_cf = array.array("d"), array.array("d"), array.array("d")
     sonar = {}
+    seabed = np.full((n, 2), np.nan)
     row = 0
     for rec in iter_ledger_records(output, names):
         g = rec["ping"]
@@ -212,6 +242,9 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
             # as an image file: the sonar of the first ping written (the lowest survey ping)
             sonar = {"pulse_band_hz": [float(b) for b in rec["band_hz"]],
                      "array_width_m": float(rec["array_width_m"])}
+        fit = seabed_line([pk["y_m"] for pk in rec["peaks"]], [pk["z_m"] for pk in rec["peaks"]])
+        if fit is not None:
+            seabed[g] = fit
         for k, pk in enumerate(rec["peaks"]):
             if pk["cf"] > threshold:
                 det_ping.append(g)
@@ -223,24 +256,24 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
     dets = _Detections(np.asarray(det_ping, dtype=np.int64), *(np.asarray(a, dtype=np.float64)
                                                                for a in (det_y, det_z, det_cf)),
                        row=np.asarray(det_row, dtype=np.int64))
-    return _FirstPass(nav, per_ping, dets, row, sonar)
+    return _FirstPass(nav, per_ping, dets, row, sonar, seabed)
 
 
 def peak_csv_columns(nav: SurveyNavigation) -> list:
     """Columns of the peaks CSV: :data:`clbeam.io.peaks.PEAK_COLUMNS`, the detection test's, the input
     file and ping time, the navigated or the along-track columns (both when
-    some pings have navigation and some not), and ``object``."""
+    some pings have navigation and some not), ``object`` and ``line``."""
     columns = list(PEAK_COLUMNS) + list(DETECTION_COLUMNS) + ["file_index", "file_ping", "time_s"]
     if nav.has_nav.any():
         columns += list(NAV_COLUMNS)
     if (~nav.has_nav).any():
         columns.append("along_track_m")
-    columns.append("object")
+    columns += ["object", "line"]
     return columns
 
 
 def _write_peaks(output: Path, names: list, files: dict, options: SurveyOptions, nav: SurveyNavigation,
-                 row_object: np.ndarray) -> None:
+                 row_labels: dict) -> None:
     """Second pass: every peak, georeferenced, to the group ``peaks``, the CSV and the GeoJSON."""
     attrs = {"utm_epsg": nav.epsg if nav.epsg is not None else -1, "peak_threshold": options.imaging.threshold,
              "map_threshold": options.association.threshold}
@@ -251,7 +284,7 @@ def _write_peaks(output: Path, names: list, files: dict, options: SurveyOptions,
         for rec in iter_ledger_records(output, names):
             k = len(rec["peaks"])
             if k:
-                writer.add(_peak_columns(rec, nav, row_object[row:row + k]))
+                writer.add(_peak_columns(rec, nav, {c: v[row:row + k] for c, v in row_labels.items()}))
             row += k
         writer.close()
     except BaseException:
@@ -259,7 +292,7 @@ def _write_peaks(output: Path, names: list, files: dict, options: SurveyOptions,
         raise
 
 
-def _peak_columns(rec: dict, nav: SurveyNavigation, objects: np.ndarray) -> dict:
+def _peak_columns(rec: dict, nav: SurveyNavigation, labels: dict) -> dict:
     """The peak-table columns of one ledger record."""
     pk = rec["peaks"]
     k = len(pk)
@@ -273,7 +306,7 @@ def _peak_columns(rec: dict, nav: SurveyNavigation, objects: np.ndarray) -> dict
     cols["file_ping"] = np.full(k, rec["file_ping"], dtype=np.int32)
     cols["time_s"] = np.full(k, nav.time_s[g])
     cols.update(nav.peak_columns(pings, cols["y_m"]))
-    cols["object"] = objects.astype(np.int64)
+    cols.update(labels)
     return cols
 
 

@@ -1,0 +1,134 @@
+"""Where a detection lies relative to the seabed of its ping.
+
+**The seabed of a ping** is picked from its own coherence peaks: most of
+them are seabed scatterers, whatever lies below (a horizon's, a pipeline's)
+is deeper, and nothing lies above it but noise.  :func:`seabed_line` fits
+``z = z0 + slope y`` to them: candidate lines through pairs of peaks
+(RANSAC, Fischler & Bolles 1981), scored by the peaks within
+``tolerance_m``; of those holding at least half the best count the
+shallowest wins (a strong horizon may hold as many peaks as the seabed, it
+never lies above it); a Tukey-weighted least-squares fit refines it.  The
+seabed is taken as a plane across the swath: over a seabed that bends
+across the swath (a channel, a ridge), burials are off by the bend.
+
+**Positions along the arc.** A peak's range is good to centimetres, its
+angle is not: away from nadir the array's beam widens as ``1 / cos(theta)``
+and a peak slides along its arc of constant range over metres (Holland et
+al. 2024, the main-lobe arcs).  :func:`arc_constrained` moves each peak
+along its arc to the most likely point given that slide (standard deviation
+``arc_sigma_rad / cos(theta)`` of angle) and a prior that the target lies
+``prior_burial_m`` below the seabed (standard deviation
+``prior_sigma_m``): near nadir the peak stays where it is, near endfire it
+moves onto the seabed's neighbourhood, where its cross-track offset is
+then good to about ``(z / y)`` times the burial's error.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: angle slide of a coherence peak along its arc at broadside (rad): 0.2 degree, measured on line1 and line4
+ARC_SIGMA_RAD = math.radians(0.2)
+
+
+def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, n_trials: int = 200,
+                seed: int = 0) -> tuple[float, float] | None:
+    """The seabed of one ping from its peaks: ``(z0, slope)`` of ``z = z0 + slope y`` (m, 1), or ``None``.
+
+    Parameters
+    ----------
+    y_m, z_m : array_like
+        ``(n,)`` peak positions, earth frame (m).
+    tolerance_m : float
+        Distance in depth that makes a peak an inlier (m).
+    max_slope : float
+        Largest slope tried (0.27: 15 degrees).
+    n_trials : int
+        Candidate pairs (drawn with a fixed ``seed``: the same peaks give the same seabed).
+
+    Returns
+    -------
+    (float, float) or None
+        ``None`` with fewer than 5 peaks or no candidate holding 5.
+    """
+    y = np.asarray(y_m, dtype=np.float64)
+    z = np.asarray(z_m, dtype=np.float64)
+    ok = np.isfinite(y) & np.isfinite(z)
+    y, z = y[ok], z[ok]
+    if y.size < 5:
+        return None
+    rng = np.random.default_rng(seed)
+    i, j = rng.integers(0, y.size, size=(2, n_trials))
+    dy = y[j] - y[i]
+    good = np.abs(dy) > 1.0
+    slope = np.where(good, (z[j] - z[i]) / np.where(good, dy, 1.0), 0.0)
+    good &= np.abs(slope) <= max_slope
+    if not good.any():
+        slope, z0 = np.zeros(1), np.array([np.median(z)])
+    else:
+        slope = slope[good]
+        z0 = z[i[good]] - slope * y[i[good]]
+    resid = z[None, :] - (z0[:, None] + slope[:, None] * y[None, :])
+    count = (np.abs(resid) <= tolerance_m).sum(axis=1)
+    if count.max() < 5:
+        return None
+    strong = count >= 0.5 * count.max()
+    # the shallowest of the well-supported lines, at the middle of the swath
+    mid = float(np.median(y))
+    k = np.flatnonzero(strong)[np.argmin((z0 + slope * mid)[strong])]
+    return _refine(y, z, float(z0[k]), float(slope[k]), tolerance_m)
+
+
+def _refine(y: np.ndarray, z: np.ndarray, z0: float, slope: float, tolerance_m: float) -> tuple[float, float]:
+    """Tukey-biweight least squares from a starting line (a few iterations)."""
+    c = 2.0 * tolerance_m
+    for _ in range(5):
+        r = z - (z0 + slope * y)
+        w = np.where(np.abs(r) < c, (1 - (r / c) ** 2) ** 2, 0.0)
+        if w.sum() < 3 or np.ptp(y[w > 0]) <= 0:
+            break
+        a = np.stack([np.ones_like(y), y], axis=1) * np.sqrt(w)[:, None]
+        z0, slope = np.linalg.lstsq(a, z * np.sqrt(w), rcond=None)[0]
+    return float(z0), float(slope)
+
+
+def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior_burial_m: float = 1.0,
+                    prior_sigma_m: float = 2.0, arc_sigma_rad: float = ARC_SIGMA_RAD) -> tuple:
+    """Peaks moved along their arcs to the most likely point (module docstring).
+
+    Parameters
+    ----------
+    y_m, z_m : array_like
+        ``(n,)`` peak positions, earth frame (m).
+    centre_yz_m : array_like
+        ``(n, 2)`` or ``(2,)`` centre of each peak's arc: its grid centre (m).
+    seabed : (float, float)
+        ``(z0, slope)`` of the ping's seabed (:func:`seabed_line`).
+    prior_burial_m, prior_sigma_m : float
+        Burial the prior expects and its spread (m).
+    arc_sigma_rad : float
+        Slide of a peak's angle at broadside (rad).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        Cross-track offsets of the moved peaks (m), burials below the
+        seabed as measured (``z - seabed(y)``, m), the standard deviation of
+        those burials from the angle's slide (m), and the burials of the
+        moved peaks (m: near endfire, close to the prior's).
+    """
+    y = np.asarray(y_m, dtype=np.float64)
+    z = np.asarray(z_m, dtype=np.float64)
+    c = np.broadcast_to(np.asarray(centre_yz_m, dtype=np.float64), (y.size, 2))
+    z0, slope = seabed
+    theta = np.arctan2(y - c[:, 0], z - c[:, 1])
+    rng = np.hypot(y - c[:, 0], z - c[:, 1])
+    sigma_t = rng * arc_sigma_rad / np.maximum(np.abs(np.cos(theta)), 0.05)
+    # moving t along the arc (towards larger angle): dy = cos(theta) t, dz = -sin(theta) t
+    k = -np.sin(theta) - slope * np.cos(theta)
+    burial = z - (z0 + slope * y)
+    resid = burial - prior_burial_m
+    t = -resid * k * sigma_t ** 2 / (prior_sigma_m ** 2 + (k * sigma_t) ** 2)
+    return y + np.cos(theta) * t, burial, np.abs(k) * sigma_t, burial + k * t

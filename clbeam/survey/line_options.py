@@ -1,0 +1,81 @@
+"""The options of the line search (:mod:`clbeam.survey.lines`): light, so the command line can show their defaults."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from clbeam.errors import OptionError, require
+
+
+@dataclass(frozen=True)
+class LineOptions:
+    """How detections become lines (:mod:`clbeam.survey.lines`) and which lines are kept.
+
+    Attributes
+    ----------
+    across_gate_m : float
+        Largest cross-track distance of a detection from the line's
+        prediction (m).
+    burial_gate_m : float
+        Largest burial difference from the line's (m).
+    max_angle_deg : float
+        Largest heading of a line relative to the track (degree).
+    window_pings : int
+        Pings per Hough window (half-overlapping windows).
+    seed_hits : int
+        Distinct pings a Hough cell needs to seed a line.
+    min_hits : int
+        Pings with a detection a line needs.
+    max_gap_pings : int
+        Imaged pings in a row without a detection a line may bridge.
+    fit_hits : int
+        Hits of the local fit that predicts the line's next ping.
+    fit_length_m : float
+        Along-track extent of that fit (m).
+    min_score : float
+        Score a line needs (``-log10`` of the expected number of chance
+        lines as good per km of survey line, :mod:`clbeam.survey.line_score`).
+    min_burial_m, max_burial_m : float
+        Burial range of the kind ``pipeline`` (m).
+    burial_resolution_m : float
+        Largest standard error of a line's burial that counts as measured (m).
+    nadir_angle_deg : float
+        Lines within this angle of nadir on their mean are nadir echoes
+        (kinds ``seabed-nadir``, ``subbottom-nadir``).
+    """
+
+    across_gate_m: float = 1.5
+    burial_gate_m: float = 0.5
+    max_angle_deg: float = 60.0
+    window_pings: int = 16
+    seed_hits: int = 8
+    min_hits: int = 5
+    max_gap_pings: int = 6
+    fit_hits: int = 8
+    fit_length_m: float = 120.0
+    min_score: float = 1.0
+    min_burial_m: float = 0.3
+    max_burial_m: float = 10.0
+    burial_resolution_m: float = 0.5
+    nadir_angle_deg: float = 10.0
+
+    def __post_init__(self):
+        for name in ("across_gate_m", "burial_gate_m", "fit_length_m", "max_burial_m", "burial_resolution_m"):
+            v = getattr(self, name)
+            require(isinstance(v, (int, float)) and math.isfinite(v) and v > 0, OptionError,
+                    f"line option {name} must be > 0, got {v!r}")
+        for name in ("window_pings", "seed_hits", "min_hits", "fit_hits"):
+            v = getattr(self, name)
+            require(int(v) == v and v >= 2, OptionError, f"line option {name} must be an integer >= 2, got {v!r}")
+        require(int(self.max_gap_pings) == self.max_gap_pings and self.max_gap_pings >= 0, OptionError,
+                f"line option max_gap_pings must be an integer >= 0, got {self.max_gap_pings!r}")
+        require(0 < self.max_angle_deg < 89, OptionError,
+                f"line option max_angle_deg must be within 0-89 degrees, got {self.max_angle_deg!r}")
+        require(self.seed_hits <= self.window_pings, OptionError,
+                f"line option seed_hits ({self.seed_hits}) exceeds window_pings ({self.window_pings})")
+        require(0 <= self.min_burial_m < self.max_burial_m, OptionError,
+                f"line burial range must satisfy 0 <= min < max, got {self.min_burial_m!r}-{self.max_burial_m!r}")
+        require(math.isfinite(self.min_score), OptionError, f"line min score must be finite, got {self.min_score!r}")
+        require(0 <= self.nadir_angle_deg < 90, OptionError,
+                f"line nadir angle must be within 0-90 degrees, got {self.nadir_angle_deg!r}")

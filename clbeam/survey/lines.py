@@ -1,0 +1,321 @@
+"""Linear features across a survey: buried pipelines found as lines in plan view.
+
+A pipeline gives a coherence detection in ping after ping, at a cross-track
+offset that drifts steadily when it is not parallel to the track and at a
+nearly constant depth below the seabed; clutter (seabed and sub-bottom
+scatterers, noise) does not line up.  :func:`find_lines` works in the track
+frame: along-track distance ``s`` of each ping, cross-track offset ``y`` and
+burial ``b`` (depth below the seabed picked in the same ping) of each
+detection.  On a straight survey line that frame is plan view itself; on a
+curved track it bends with the track, and the products map the lines back
+to the world ping by ping.
+
+1. **Seeds** (a Hough transform): windows of ``window_pings`` pings, half
+   overlapping; in each, every detection votes for the lines through it
+   whose heading relative to the track is within ``max_angle_deg``, binned
+   by heading (spaced so that adjacent headings part by less than the gate
+   over the window), by cross-track offset at the window's centre and by
+   burial (bins the gate's width, in four staggered grids).  A cell holding
+   detections from at least ``seed_hits`` distinct pings is a seed.
+2. **Tracks**: from the strongest seed down, a line is followed ping by
+   ping in both directions: a local straight-line fit to its last hits
+   (over at most ``fit_length_m``) predicts the offset and the burial, the
+   nearest unused detection within ``across_gate_m`` and
+   ``burial_gate_m`` joins, and the track stops after ``max_gap_pings``
+   imaged pings without one.  The local fit follows curved lines (30°/km
+   bends 0.3 m from a straight line over 100 m).  Detections are used once.
+3. **Scores** (:mod:`clbeam.survey.line_score`): how unlikely the line is as
+   a chance alignment of the clutter measured around it; and a **kind**
+   from its burial and position (:func:`line_kind`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from clbeam.survey.line_options import LineOptions
+
+
+@dataclass
+class TrackFrame:
+    """Detections in the track frame, grouped by ping.
+
+    Attributes
+    ----------
+    ping : numpy.ndarray
+        ``(n,)`` survey ping of each detection (sorted).
+    s : numpy.ndarray
+        ``(n,)`` along-track distance of the detection's ping (m).
+    y, b, cf : numpy.ndarray
+        ``(n,)`` cross-track offset (m), burial below the seabed (m; the
+        depth where the seabed is unknown) and CF.
+    b_sigma : numpy.ndarray
+        ``(n,)`` standard deviation of each burial (m): the burial gate
+        widens to twice it (:func:`clbeam.survey.burial.arc_constrained`).
+    b_post : numpy.ndarray
+        ``(n,)`` burial of the peak moved along its arc under the prior
+        (:func:`clbeam.survey.burial.arc_constrained`): what the Hough
+        transform bins, so that a far peak's slide does not scatter its votes.
+    pings : numpy.ndarray
+        ``(k,)`` every imaged survey ping, sorted (those without detections too).
+    ping_s : numpy.ndarray
+        ``(k,)`` their along-track distance (m).
+    """
+
+    ping: np.ndarray
+    s: np.ndarray
+    y: np.ndarray
+    b: np.ndarray
+    cf: np.ndarray
+    b_sigma: np.ndarray
+    b_post: np.ndarray
+    pings: np.ndarray
+    ping_s: np.ndarray
+    starts: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        pos = np.searchsorted(self.ping, self.pings)
+        self.starts = np.r_[pos, self.ping.size]
+
+    def at(self, k: int) -> slice:
+        """Detections of the ``k``-th imaged ping."""
+        return slice(int(self.starts[k]), int(self.starts[k + 1]))
+
+
+@dataclass
+class Track:
+    """One line: its detections and its smoothed path.
+
+    Attributes
+    ----------
+    members : numpy.ndarray
+        ``(h,)`` indices of its detections in the :class:`TrackFrame` (one per ping, ping order).
+    first, last : int
+        Indices of its first and last ping in ``TrackFrame.pings``.
+    """
+
+    members: np.ndarray
+    first: int
+    last: int
+
+
+def find_tracks(frame: TrackFrame, options: LineOptions) -> list[Track]:
+    """Lines of detections (steps 1 and 2 of the module): every track of at least ``options.min_hits`` pings.
+
+    Parameters
+    ----------
+    frame : TrackFrame
+    options : LineOptions
+
+    Returns
+    -------
+    list of Track
+        In order of their first ping.
+    """
+    used = np.zeros(frame.ping.size, dtype=bool)
+    tracks = []
+    for seed in hough_seeds(frame, options):
+        if used[seed].sum() > seed.size // 2:
+            continue
+        members = _follow(frame, seed[~used[seed]], used, options)
+        if members.size >= options.min_hits:
+            used[members] = True
+            k = np.searchsorted(frame.pings, frame.ping[members])
+            tracks.append(Track(members=members, first=int(k[0]), last=int(k[-1])))
+    tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
+    return tracks
+
+
+def hough_seeds(frame: TrackFrame, options: LineOptions) -> list[np.ndarray]:
+    """Seeds of lines: detection index sets from the windowed Hough transform, most pings first."""
+    n_win = max(1, int(options.window_pings))
+    step = max(1, n_win // 2)
+    seeds = []
+    for k0 in range(0, max(1, frame.pings.size - n_win // 2), step):
+        k1 = min(frame.pings.size, k0 + n_win)
+        sl = slice(int(frame.starts[k0]), int(frame.starts[k1]))
+        seeds.extend(_window_seeds(frame, sl, k0, k1, options))
+    seeds.sort(key=lambda t: -t[0])
+    return [idx for _, idx in seeds]
+
+
+def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineOptions) -> list:
+    """``(distinct pings, detection indices)`` of the Hough cells of one window that reach ``seed_hits``."""
+    idx = np.arange(sl.start, sl.stop)
+    if idx.size < options.seed_hits:
+        return []
+    s, y, b = frame.s[idx], frame.y[idx], np.nan_to_num(frame.b_post[idx], nan=0.0)
+    s_mid = 0.5 * (frame.ping_s[k0] + frame.ping_s[k1 - 1])
+    half = max(0.5 * (frame.ping_s[k1 - 1] - frame.ping_s[k0]), options.across_gate_m)
+    # adjacent headings part by one gate at the window's ends: half a bin
+    t_max = math.tan(math.radians(options.max_angle_deg))
+    tans = np.linspace(-t_max, t_max, 2 * int(math.ceil(t_max * half / options.across_gate_m)) + 1)
+    icpt = y[None, :] - tans[:, None] * (s - s_mid)[None, :]
+    width_y, width_b = 2 * options.across_gate_m, 2 * options.burial_gate_m
+    out = []
+    for oy, ob in ((0.0, 0.0), (0.5, 0.0), (0.0, 0.5), (0.5, 0.5)):
+        iy = np.floor(icpt / width_y + oy).astype(np.int64)
+        ib = np.floor(b / width_b + ob).astype(np.int64)
+        iy -= iy.min()
+        ib -= ib.min()
+        ny, nb = int(iy.max() + 1), int(ib.max() + 1)
+        # one integer per (heading, offset, burial) cell; detections counted first, distinct pings for the few
+        cell = (np.arange(tans.size)[:, None] * ny + iy) * nb + ib[None, :]
+        counts = np.bincount(cell.ravel())
+        full = np.flatnonzero(counts >= options.seed_hits)
+        if not full.size:
+            continue
+        jj, dd = np.nonzero(np.isin(cell, full))
+        c = cell[jj, dd]
+        order = np.argsort(c, kind="stable")
+        c, dd = c[order], dd[order]
+        cuts = np.flatnonzero(np.diff(c)) + 1
+        for members in np.split(idx[dd], cuts):
+            h = np.unique(frame.ping[members]).size
+            if h >= options.seed_hits:
+                out.append((h, members))
+    return out
+
+
+def _follow(frame: TrackFrame, seed: np.ndarray, used: np.ndarray, options: LineOptions) -> np.ndarray:
+    """A track grown from a seed in both directions; its detections, one per ping, in ping order."""
+    hits = _best_per_ping(frame, seed)
+    for direction in (1, -1):
+        hits = _extend(frame, hits, used, options, direction)
+    return np.asarray(sorted(hits.values(), key=lambda i: frame.ping[i]), dtype=np.int64)
+
+
+def _best_per_ping(frame: TrackFrame, idx: np.ndarray) -> dict:
+    """One detection per ping of a seed: the one nearest the seed's straight-line fit."""
+    s, y = frame.s[idx], frame.y[idx]
+    fit = np.polyfit(s - s.mean(), y, 1) if np.ptp(s) > 0 else np.array([0.0, y.mean()])
+    resid = np.abs(y - np.polyval(fit, s - s.mean()))
+    best = {}
+    for i, r in zip(idx, resid):
+        k = int(np.searchsorted(frame.pings, frame.ping[i]))
+        if k not in best or r < best[k][1]:
+            best[k] = (int(i), float(r))
+    return {k: v[0] for k, v in best.items()}
+
+
+def _extend(frame: TrackFrame, hits: dict, used: np.ndarray, options: LineOptions, direction: int) -> dict:
+    """Grow a track ping by ping in one direction until ``max_gap_pings`` imaged pings in a row miss."""
+    ks = sorted(hits, reverse=direction > 0)
+    recent = [hits[q] for q in ks[:options.fit_hits]]  # nearest the growing end first
+    k = ks[0]
+    misses = 0
+    while 0 <= k + direction < frame.pings.size and misses <= options.max_gap_pings:
+        k += direction
+        sl = frame.at(k)
+        if sl.start == sl.stop:
+            misses += 1
+            continue
+        y_hat, b_hat = _predict(frame, np.asarray(recent), frame.ping_s[k], options)
+        cand = np.arange(sl.start, sl.stop)
+        cand = cand[~used[cand]]
+        dy = np.abs(frame.y[cand] - y_hat)
+        ok = (dy <= options.across_gate_m) & _burial_ok(frame.b[cand], frame.b_sigma[cand], b_hat, options)
+        if ok.any():
+            hits[k] = int(cand[ok][np.argmin(dy[ok])])
+            recent = [hits[k]] + recent[:options.fit_hits - 1]
+            misses = 0
+        else:
+            misses += 1
+    return hits
+
+
+def _burial_ok(b: np.ndarray, sigma: np.ndarray, b_hat: float, options: LineOptions) -> np.ndarray:
+    if not math.isfinite(b_hat):
+        return np.ones(b.shape, dtype=bool)
+    return ~(np.abs(b - b_hat) > np.maximum(options.burial_gate_m, 2 * sigma))
+
+
+def _predict(frame: TrackFrame, recent: np.ndarray, s_at: float, options: LineOptions) -> tuple:
+    """Offset and burial at along-track distance ``s_at`` from a straight-line fit to the track's nearest hits."""
+    s, y = frame.s[recent], frame.y[recent]
+    near = np.abs(s - s[0]) <= options.fit_length_m
+    s, y = s[near] - s_at, y[near]
+    b_hat = burial_estimate(frame.b[recent], frame.b_sigma[recent])
+    if s.size < 3:
+        return float(y[0]), b_hat
+    sm, ym = s.mean(), y.mean()
+    var = float(((s - sm) ** 2).sum())
+    if var <= 0:
+        return float(ym), b_hat
+    slope = float(((s - sm) * (y - ym)).sum()) / var
+    return float(ym - slope * sm), b_hat
+
+
+def burial_estimate(b: np.ndarray, sigma: np.ndarray) -> float:
+    """A line's burial from its detections' (m): the median of those measured best.
+
+    The detections whose burial standard deviation is within twice the
+    smallest count (near nadir the angle, and so the depth, is sharp; near
+    endfire it slides metres along the arc); NaN when none has one.
+    """
+    ok = np.isfinite(b) & np.isfinite(sigma)
+    if not ok.any():
+        return math.nan
+    b, sigma = b[ok], sigma[ok]
+    best = sigma <= 2 * max(float(np.min(sigma)), 0.1)
+    return float(np.median(b[best]))
+
+
+def line_burial(b: np.ndarray, sigma: np.ndarray, floor_m: float = 0.3) -> tuple[float, float, float]:
+    """A line's burial from its detections': ``(estimate, standard error, spread)`` (m).
+
+    The mean weighted by ``1 / sigma^2`` (``sigma`` at least ``floor_m``:
+    a peak's depth is never better than a fraction of the pulse), with
+    detections more than three of their ``sigma`` from it dropped (twice
+    over); the standard error ``1 / sqrt(sum w)``; the weighted standard
+    deviation of the kept burials (the line's depth consistency).  All NaN
+    without a measured burial.
+    """
+    ok = np.isfinite(b) & np.isfinite(sigma)
+    if not ok.any():
+        return math.nan, math.nan, math.nan
+    b, sig = b[ok], np.maximum(sigma[ok], floor_m)
+    keep = np.ones(b.size, dtype=bool)
+    for _ in range(3):
+        w = 1 / sig[keep] ** 2
+        mean = float((w * b[keep]).sum() / w.sum())
+        new = np.abs(b - mean) <= 3 * sig
+        if not new.any() or (new == keep).all():
+            break
+        keep = new
+    w = 1 / sig[keep] ** 2
+    mean = float((w * b[keep]).sum() / w.sum())
+    spread = float(np.sqrt((w * (b[keep] - mean) ** 2).sum() / w.sum()))
+    return mean, float(1 / np.sqrt(w.sum())), spread
+
+
+def smooth_path(frame: TrackFrame, track: Track, half_width_m: float) -> np.ndarray:
+    """The track's offset at each ping of its extent: a local straight-line fit (tricube weights).
+
+    Parameters
+    ----------
+    frame : TrackFrame
+    track : Track
+    half_width_m : float
+        Half-width of the weights along the track (m).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(last - first + 1,)`` cross-track offsets (m) at ``frame.pings[first:last + 1]``.
+    """
+    s, y = frame.s[track.members], frame.y[track.members]
+    at = frame.ping_s[track.first:track.last + 1]
+    d = (s[None, :] - at[:, None]) / max(half_width_m, 1e-9)
+    w = np.clip(1 - np.abs(d) ** 3, 0, None) ** 3
+    # at least the three nearest hits weigh in, whatever the gap
+    nearest = np.argsort(np.abs(d), axis=1)[:, :3]
+    np.put_along_axis(w, nearest, np.maximum(np.take_along_axis(w, nearest, axis=1), 1e-3), axis=1)
+    sw, sd, sy = w.sum(1), (w * d).sum(1), (w * y).sum(1)
+    sdd, sdy = (w * d * d).sum(1), (w * d * y).sum(1)
+    det = sw * sdd - sd ** 2
+    flat = det <= 1e-12 * np.maximum(sw ** 2, 1e-30)
+    return np.where(flat, sy / sw, (sdd * sy - sd * sdy) / np.where(flat, 1.0, det))
