@@ -60,7 +60,7 @@ def add_line_options(p) -> None:
     a = p.add_argument_group("lines (docs/lines.md)")
     a.add_argument("--line-min-score", type=float, default=d.min_score, metavar="S",
                    help=f"score a line needs: -log10 of the expected chance lines as good per km "
-                        f"(default {d.min_score:g}: about 0.1 false line per km)")
+                        f"(default {d.min_score:g}: no false pipeline line in the simulated clutter, docs/lines.md)")
     a.add_argument("--line-gate", type=float, default=d.across_gate_m, metavar="M",
                    help=f"largest cross-track distance of a detection from its line (m, default {d.across_gate_m:g})")
     a.add_argument("--line-max-gap", type=int, default=d.max_gap_pings, metavar="N",
@@ -140,4 +140,16 @@ def run(args) -> int:
                      progress=lambda total: progress(None, total=total, desc="survey", quiet=args.quiet))
     if not args.quiet or res.failures:
         print("\n".join(summary_lines(res)))
+    if args.truth and res.products:
+        print("\n".join(_truth_lines(res.products, [f.path for f in scan.files])))
     return 0 if res.complete else 1
+
+
+def _truth_lines(products, paths) -> list:
+    """The ``--truth`` report, or why there is none."""
+    from clbeam.evaluation.line_truth import score_survey, truth_summary
+
+    scored = score_survey(products, paths)
+    if scored is None:
+        return ["truth: the inputs hold no line targets' truth (truth_target_* variables of a simulation)"]
+    return truth_summary(*scored)

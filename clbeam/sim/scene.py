@@ -437,6 +437,15 @@ class LineTarget:
         Pipe radius ``a`` (m): 0.11 in the paper.
     reflectivity : float
         Scale of the echo (a reflection coefficient for a rigid or steel pipe).
+    gap_x_m : tuple of float
+        ``(x0, x1)``: no pipe between these track-frame ``x`` (m), e.g. a
+        stretch washed away or lying too deep to see; empty: none.
+    roughness : float
+        Relative standard deviation of the echo from point to point (field
+        joints, coating, marine growth): the incoherent part that scatters
+        away from the specular direction and shows a pipe that crosses the
+        track obliquely, whose specular point lies outside the transmit
+        beam.  0: a smooth pipe.
     """
 
     name: str = "pipe"
@@ -448,8 +457,13 @@ class LineTarget:
     burial_m: float | None = None
     z_m: float | None = None
     reflectivity: float = 0.8
+    gap_x_m: tuple = ()
+    roughness: float = 0.0
 
     def __post_init__(self):
+        require(self.roughness >= 0, OptionError, f"target '{self.name}': roughness must be >= 0, got {self.roughness}")
+        require(len(self.gap_x_m) in (0, 2) and (not self.gap_x_m or self.gap_x_m[0] < self.gap_x_m[1]),
+                OptionError, f"target '{self.name}': gap_x_m must be [x0, x1] with x0 < x1, got {list(self.gap_x_m)}")
         if self.z_m is None and self.burial_m is None:  # the paper's pipes: 1 m below the seabed
             object.__setattr__(self, "burial_m", 1.0)
         require((self.z_m is None) != (self.burial_m is None), OptionError,

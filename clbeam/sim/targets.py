@@ -16,6 +16,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import zlib
 
 import numpy as np
 
@@ -101,7 +102,9 @@ def line_points(prop: Propagation, t: LineTarget, *, x_window: tuple[float, floa
     Returns
     -------
     dict
-        ``x``, ``y``, ``z`` (m, track frame, sorted by ``x``) and ``spacing`` (m).
+        ``x``, ``y``, ``z`` (m, track frame, sorted by ``x``), ``weight``
+        (each point's echo over the smooth pipe's: 1 plus the roughness
+        times a fixed unit noise) and ``spacing`` (m).
     """
     spacing = prop.scene.model.line_spacing_m
     if spacing is None:
@@ -117,8 +120,21 @@ def line_points(prop: Propagation, t: LineTarget, *, x_window: tuple[float, floa
     x, y, d = arc(t, s)
     order = np.argsort(x, kind="stable")
     z = np.full(s.size, t.z_m) if t.z_m is not None else seabed_z(prop.scene, x, y) + t.burial_m
-    log.debug("line %s: %d points, spacing %.3f m", t.name, s.size, spacing)
-    return {"x": x[order], "y": y[order], "z": z[order], "spacing": spacing}
+    weight = 1 + t.roughness * _unit_noise(np.rint(s / spacing).astype(np.int64), t.name)
+    x, y, z, weight = x[order], y[order], z[order], weight[order]
+    if t.gap_x_m:  # the stretch with no pipe
+        keep = ~((x >= t.gap_x_m[0]) & (x <= t.gap_x_m[1]))
+        x, y, z, weight = x[keep], y[keep], z[keep], weight[keep]
+    log.debug("line %s: %d points, spacing %.3f m", t.name, x.size, spacing)
+    return {"x": x, "y": y, "z": z, "weight": weight, "spacing": spacing}
+
+
+def _unit_noise(index: np.ndarray, name: str) -> np.ndarray:
+    """Zero-mean, unit-variance noise that is a fixed function of a point's index along its line
+    (the same point gets the same value whichever pings are made)."""
+    key = zlib.crc32(name.encode()) % 100003
+    frac = np.mod(np.sin(index * 12.9898 + key * 78.233) * 43758.5453, 1.0)
+    return (frac - 0.5) * math.sqrt(12.0)
 
 
 # -- echoes ------------------------------------------------------------------------
@@ -154,11 +170,11 @@ def line_echo(prop: Propagation, g: PingGeometry, t: LineTarget, pts: dict) -> E
         return None
     pos = np.stack([pts["x"][lo:hi] - g.along_m, pts["y"][lo:hi], pts["z"][lo:hi]], axis=1)
     if prop.svp is not None:
-        return _line_echo_traced(prop, g, t, pts, pos)
+        return _line_echo_traced(prop, g, t, pts, pos, pts["weight"][lo:hi])
     _, u = prop.direction_cosine(g, pos)
     keep = np.abs(u) < prop.u_cut
     pos = pos[keep]
-    amp = np.full(len(pos), t.reflectivity * pts["spacing"])
+    amp = t.reflectivity * pts["spacing"] * pts["weight"][lo:hi][keep]
     medium_c = prop.c
     kw = {}
     if t.burial_m is not None:
@@ -170,7 +186,8 @@ def line_echo(prop: Propagation, g: PingGeometry, t: LineTarget, pts: dict) -> E
                            **kw)
 
 
-def _line_echo_traced(prop: Propagation, g: PingGeometry, t: LineTarget, pts: dict, pos: np.ndarray) -> Echoes:
+def _line_echo_traced(prop: Propagation, g: PingGeometry, t: LineTarget, pts: dict, pos: np.ndarray,
+                      weight: np.ndarray) -> Echoes:
     """:func:`line_echo` through the sound-speed profile."""
     buried = t.burial_m is not None
     zsb = pos[:, 2] - t.burial_m if buried else None
@@ -178,7 +195,7 @@ def _line_echo_traced(prop: Propagation, g: PingGeometry, t: LineTarget, pts: di
     keep = np.abs(src["u"]) < prop.u_cut             # NaN: no ray, out
     pos, src = pos[keep], {k: v[keep] for k, v in src.items()}
     zsb = zsb[keep] if buried else None
-    amp = np.full(len(pos), t.reflectivity * pts["spacing"])
+    amp = t.reflectivity * pts["spacing"] * weight[keep]
     b_s = None
     if buried:
         medium_c = prop.c_seabed * prop.scene.seabed.sound_speed_ratio

@@ -121,6 +121,8 @@ def ping_truth(prop: Propagation, g: PingGeometry, lines: list) -> dict:
             nearest = np.array([x - g.along_m, y, z])
         else:
             y, z, ang = line_crossing(sc, t, g.along_m)
+            if t.gap_x_m and t.gap_x_m[0] <= g.along_m <= t.gap_x_m[1] or not len(pts["x"]):
+                continue  # no pipe crosses this ping's plane: NaN
             out["x"][k], out["y"][k], out["z"][k], out["angle"][k] = 0.0, y, z, ang
             rel = np.stack([pts["x"] - g.along_m, pts["y"], pts["z"]], axis=1) - g.source
             nearest = rel[np.argmin(np.einsum("ij,ij->i", rel, rel))] + g.source

@@ -57,11 +57,17 @@ def associate(ping, position_m, starboard, z_m, options: AssociationOptions | No
     for lab in np.unique(comp):
         m = comp == lab
         if np.unique(p[m]).size >= o.min_pings:
-            keep.append((int(p[m].min()), float(np.nanmean(pos[m, 0])), float(np.nanmean(pos[m, 1])), lab))
+            keep.append((int(p[m].min()), _mean(pos[m, 0]), _mean(pos[m, 1]), lab))
     keep.sort(key=lambda t: (t[0], np.nan_to_num(t[1]), np.nan_to_num(t[2])))
     for num, (*_, lab) in enumerate(keep):
         labels[comp == lab] = num
     return labels
+
+
+def _mean(v: np.ndarray) -> float:
+    """Mean of the finite values; NaN (without a warning) when there is none (an unknown along-track distance)."""
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else float("nan")
 
 
 def _links(p, pos, sb, z, o: AssociationOptions) -> tuple:

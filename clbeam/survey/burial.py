@@ -29,8 +29,9 @@ import math
 
 import numpy as np
 
-#: angle slide of a coherence peak along its arc at broadside (rad): 0.2 degree, measured on line1 and line4
-ARC_SIGMA_RAD = math.radians(0.2)
+#: angle slide of a coherence peak along its arc at broadside (rad): 0.2 degree measured on line1 and line4 at
+#: the paper's grid, 0.3 on coarser grids (0.25 degree, 0.5 m)
+ARC_SIGMA_RAD = math.radians(0.3)
 
 
 def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, n_trials: int = 200,
@@ -113,11 +114,12 @@ def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior
 
     Returns
     -------
-    (numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray)
+    (numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray)
         Cross-track offsets of the moved peaks (m), burials below the
         seabed as measured (``z - seabed(y)``, m), the standard deviation of
-        those burials from the angle's slide (m), and the burials of the
-        moved peaks (m: near endfire, close to the prior's).
+        those burials from the angle's slide (m), the burials of the
+        moved peaks (m: near endfire, close to the prior's), and the
+        standard deviation of the moved offsets (m).
     """
     y = np.asarray(y_m, dtype=np.float64)
     z = np.asarray(z_m, dtype=np.float64)
@@ -130,5 +132,7 @@ def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior
     k = -np.sin(theta) - slope * np.cos(theta)
     burial = z - (z0 + slope * y)
     resid = burial - prior_burial_m
+    shrink = prior_sigma_m ** 2 / (prior_sigma_m ** 2 + (k * sigma_t) ** 2)
     t = -resid * k * sigma_t ** 2 / (prior_sigma_m ** 2 + (k * sigma_t) ** 2)
-    return y + np.cos(theta) * t, burial, np.abs(k) * sigma_t, burial + k * t
+    sigma_y = np.abs(np.cos(theta)) * sigma_t * np.sqrt(shrink)
+    return y + np.cos(theta) * t, burial, np.abs(k) * sigma_t, burial + k * t, sigma_y

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -58,6 +58,9 @@ class SurveyLines:
         northing (m) with navigation, along- and across-track (m) without.
     geo_paths : list of numpy.ndarray or None
         With navigation, per line ``(k, 2)`` ``[longitude, latitude]`` (degree).
+    ping_paths : list of (numpy.ndarray, numpy.ndarray)
+        Per line, the survey pings of its extent and its cross-track offset
+        at each (m, smoothed, earth frame of each ping).
     labels : numpy.ndarray
         ``(n,)`` line of each detection (-1: none).
     n_candidates : int
@@ -72,6 +75,7 @@ class SurveyLines:
     n_candidates: int
     geo_paths: list | None = None
     min_score: float = math.nan
+    ping_paths: list = field(default_factory=list)
 
 
 def smooth_seabed(seabed: np.ndarray, imaged: np.ndarray, half_window: int = 4) -> np.ndarray:
@@ -140,17 +144,38 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     scaled = track_distance_m(nav, pings)[1]
     tracks = find_tracks(frame, options)
     size = _search_size(frame)
-    rows, paths, geo, labels = [], [], [], np.full(n, -1, dtype=np.int64)
-    for tr in tracks:
-        row, path, lonlat = _describe(frame, tr, options, size, sb, centre_yz, nav, scaled)
-        if row["score"] < options.min_score:
-            continue
+    described = [(tr, *_describe(frame, tr, options, size, sb, centre_yz, nav, scaled)) for tr in tracks]
+    kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], options)
+    rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
+    for tr, row, ping_path, path, lonlat in kept:
         row["line"] = len(rows)
         labels[order[tr.members]] = row["line"]
         rows.append(row)
         paths.append(path)
         geo.append(lonlat)
-    return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score)
+        ping_paths.append(ping_path)
+    return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths)
+
+
+def _without_duplicates(described: list, options: LineOptions) -> list:
+    """The lines less those that shadow a better one: over at least half their pings within two gates of it
+    across the track and within 3 m in burial (a pulse's tail or a sidelobe of the same pipe), in line order."""
+    order = sorted(range(len(described)), key=lambda i: -described[i][1]["score"])
+    kept = []
+    for i in order:
+        _, row, (pings, y), *_ = described[i]
+        dup = False
+        for j in kept:
+            _, other, (p2, y2), *_ = described[j]
+            common, a, b = np.intersect1d(pings, p2, return_indices=True)
+            near = np.abs(y[a] - y2[b]) <= 2 * options.across_gate_m
+            same_depth = not (abs(row["burial_m"] - other["burial_m"]) > 3.0)
+            if near.sum() >= 0.5 * pings.size and same_depth:
+                dup = True
+                break
+        if not dup:
+            kept.append(i)
+    return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
 
 
 def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray, pings: np.ndarray,
@@ -158,16 +183,17 @@ def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np
     """The detections in the track frame, each moved along its arc against its ping's seabed."""
     p = det.ping[order]
     y, z = det.y[order], det.z[order]
-    ya, b, sd, bpost = (np.full(p.size, np.nan) for _ in range(4))
+    ya, b, sd, bpost, sy = (np.full(p.size, np.nan) for _ in range(5))
     known = np.isfinite(sb[p]).all(axis=1)
     for g in np.unique(p[known]):
         m = p == g
-        ya[m], b[m], sd[m], bpost[m] = arc_constrained(y[m], z[m], centre_yz[g], tuple(sb[g]))
+        ya[m], b[m], sd[m], bpost[m], sy[m] = arc_constrained(y[m], z[m], centre_yz[g], tuple(sb[g]))
     ya[~known] = y[~known]
+    sy[~known] = 0.0
     s_ping = track_distance_m(nav, pings)[0]
     s = s_ping[np.searchsorted(pings, p)]
     return TrackFrame(ping=p, s=s, y=ya, b=b, cf=det.cf[order], b_sigma=sd, b_post=bpost,
-                      pings=pings, ping_s=s_ping)
+                      pings=pings, ping_s=s_ping, y_sigma=sy)
 
 
 def _search_size(frame: TrackFrame) -> SearchSize:
@@ -179,29 +205,43 @@ def _search_size(frame: TrackFrame) -> SearchSize:
 
 def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSize, sb: np.ndarray,
               centre_yz: np.ndarray, nav: SurveyNavigation, scaled: bool) -> tuple:
-    """One line's row, path in the association frame, and ``[longitude, latitude]`` path (``None`` without navigation)."""
+    """One line's row, ``(pings, y)``, path in the association frame, and ``[longitude, latitude]`` path (``None``
+    without navigation)."""
     m = tr.members
     path_y = smooth_path(frame, tr, options.fit_length_m / 2)
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
-    sig = frame.b_sigma[m][np.isfinite(frame.b_sigma[m])]
-    gate_b = max(options.burial_gate_m, 2 * float(np.median(sig))) if sig.size else options.burial_gate_m
+    gate_y, gate_b = effective_gates(frame, tr, path_y, options)
     others = np.setdiff1d(np.arange(int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])), m)
     line_y_at = path_y[np.searchsorted(ext, frame.ping[others])]
     density = clutter_density(frame.y[others], frame.b[others], line_y_at, burial if math.isfinite(burial)
-                              else math.nan, n_pings=ext.size, across_gate_m=options.across_gate_m,
+                              else math.nan, n_pings=ext.size, across_gate_m=gate_y,
                               burial_gate_m=gate_b, burial_half_m=max(3.0, 1.5 * gate_b))
-    score = line_score(m.size, ext.size, density, options.across_gate_m, gate_b, size, options.max_angle_deg)
+    score = line_score(m.size, ext.size, density, gate_y, gate_b, size, options.max_angle_deg)
     z_line = sb[ext, 0] + sb[ext, 1] * path_y + (burial if math.isfinite(burial) else 0.0)
     angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))
-    row = {"kind": line_kind(burial, resolved, float(np.median(np.abs(angle))), options),
+    row = {"kind": line_kind(burial, burial_se, float(np.median(np.abs(angle))), options),
            "n_pings": int(m.size), "first_ping": int(ext[0]), "last_ping": int(ext[-1]),
            "mean_cf": float(np.mean(frame.cf[m])), "score": float(score),
            "burial_m": burial, "burial_std_m": spread, "burial_error_m": burial_se, "burial_resolved": int(resolved),
            "mean_y_m": float(np.mean(path_y)), "mean_z_m": float(np.nanmean(z_line)),
            "detected_fraction": float(m.size / ext.size)}
-    return (row, *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+    return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+
+
+def effective_gates(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> tuple[float, float]:
+    """The half-widths (m) across and in burial the track's detections were gated with, on average: the gates
+    widen with the line's heading and with each peak's slide along its arc (:mod:`clbeam.survey.lines`), and the
+    score's chance of a clutter hit must use what was used."""
+    m = tr.members
+    s_ext = frame.ping_s[tr.first:tr.last + 1]
+    slope = np.gradient(path_y, s_ext) if path_y.size > 1 and np.ptp(s_ext) > 0 else np.zeros(path_y.size)
+    k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
+    gy = np.maximum(options.across_gate_m * np.minimum(np.hypot(1.0, slope[k]), 2.0), 2 * frame.y_sigma[m])
+    sig = frame.b_sigma[m]
+    gb = np.maximum(options.burial_gate_m, 2 * np.where(np.isfinite(sig), sig, 0.0))
+    return float(np.mean(gy)), float(np.mean(gb))
 
 
 def _world_path(row: dict, pings: np.ndarray, y: np.ndarray, s: np.ndarray, nav: SurveyNavigation,
@@ -246,25 +286,31 @@ def line_rows(lines: SurveyLines, nav: SurveyNavigation) -> tuple:
     return [{c: r[c] for c in columns} for r in lines.rows], columns, coords
 
 
-def line_kind(burial_m: float, resolved: bool, nadir_angle_deg: float, options: LineOptions) -> str:
-    """The kind of a line from its burial (m), whether that is measured, and its typical angle from nadir (degree).
+def line_kind(burial_m: float, burial_error_m: float, nadir_angle_deg: float, options: LineOptions) -> str:
+    """The kind of a line from its burial and that burial's standard error (m), and its typical angle from nadir
+    (degree).
 
-    ``pipeline``: buried between ``min_burial_m`` and ``max_burial_m``, or
-    off nadir with a burial the geometry cannot resolve (near endfire a
-    peak slides metres along its arc: ``burial_resolved`` 0 in the table);
-    within ``nadir_angle_deg`` of nadir and not buried: ``seabed-nadir``
-    (the seabed's specular echo and its pulse's tail), deeper than
-    ``max_burial_m``: ``subbottom-nadir`` (a horizon's); else ``seabed``
-    (within ``min_burial_m`` of it), ``water`` (above it), ``subbottom``
-    (deeper than ``max_burial_m``), ``unknown`` (no seabed).
+    A burial with a standard error above ``burial_resolution_m`` is not
+    resolved (near endfire a peak slides metres along its arc): such a line
+    is a ``pipeline`` when its burial is within three standard errors of
+    the pipelines' range ``min_burial_m``-``max_burial_m``, and is judged by
+    its estimate otherwise.  Resolved: ``pipeline`` when buried within that
+    range; within ``nadir_angle_deg`` of nadir and not buried:
+    ``seabed-nadir`` (the seabed's specular echo and its pulse's tail),
+    deeper than ``max_burial_m``: ``subbottom-nadir`` (a horizon's); else
+    ``seabed`` (within ``min_burial_m`` of it), ``water`` (above it),
+    ``subbottom`` (deeper than ``max_burial_m``); ``unknown`` without a
+    seabed.
     """
     if not math.isfinite(burial_m):
         return "unknown"
     nadir = nadir_angle_deg <= options.nadir_angle_deg
-    if burial_m > options.max_burial_m and (resolved or nadir):
-        return "subbottom-nadir" if nadir else "subbottom"
-    if burial_m >= options.min_burial_m and resolved or not (resolved or nadir):
+    resolved = math.isfinite(burial_error_m) and burial_error_m <= options.burial_resolution_m
+    reach = 0.0 if resolved or nadir else 3 * burial_error_m
+    if options.min_burial_m - reach <= burial_m <= options.max_burial_m + reach:
         return "pipeline"
+    if burial_m > options.max_burial_m:
+        return "subbottom-nadir" if nadir else "subbottom"
     if nadir:
         return "seabed-nadir"
     return "seabed" if burial_m > -options.min_burial_m else "water"

@@ -15,12 +15,14 @@ to the world ping by ping.
    whose heading relative to the track is within ``max_angle_deg``, binned
    by heading (spaced so that adjacent headings part by less than the gate
    over the window), by cross-track offset at the window's centre and by
-   burial (bins the gate's width, in four staggered grids).  A cell holding
+   burial (bins the gate's width and four times it, each in four staggered
+   grids).  A cell holding
    detections from at least ``seed_hits`` distinct pings is a seed.
 2. **Tracks**: from the strongest seed down, a line is followed ping by
    ping in both directions: a local straight-line fit to its last hits
    (over at most ``fit_length_m``) predicts the offset and the burial, the
-   nearest unused detection within ``across_gate_m`` and
+   nearest unused detection within ``across_gate_m`` of it (across the
+   line: ``1 / cos`` of its heading wider in ``y``, at most twice) and
    ``burial_gate_m`` joins, and the track stops after ``max_gap_pings``
    imaged pings without one.  The local fit follows curved lines (30°/km
    bends 0.3 m from a straight line over 100 m).  Detections are used once.
@@ -37,6 +39,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.survey.line_options import LineOptions
+
+#: Hough cells kept per window and grid, the most pings first
+MAX_SEEDS_PER_GRID = 200
 
 
 @dataclass
@@ -59,6 +64,9 @@ class TrackFrame:
         ``(n,)`` burial of the peak moved along its arc under the prior
         (:func:`clbeam.survey.burial.arc_constrained`): what the Hough
         transform bins, so that a far peak's slide does not scatter its votes.
+    y_sigma : numpy.ndarray or None
+        ``(n,)`` standard deviation of each offset (m): the cross-track gate
+        widens to twice it.
     pings : numpy.ndarray
         ``(k,)`` every imaged survey ping, sorted (those without detections too).
     ping_s : numpy.ndarray
@@ -74,9 +82,12 @@ class TrackFrame:
     b_post: np.ndarray
     pings: np.ndarray
     ping_s: np.ndarray
+    y_sigma: np.ndarray | None = None
     starts: np.ndarray = field(init=False)
 
     def __post_init__(self):
+        if self.y_sigma is None:
+            self.y_sigma = np.zeros(self.y.size)
         pos = np.searchsorted(self.ping, self.pings)
         self.starts = np.r_[pos, self.ping.size]
 
@@ -120,7 +131,7 @@ def find_tracks(frame: TrackFrame, options: LineOptions) -> list[Track]:
     for seed in hough_seeds(frame, options):
         if used[seed].sum() > seed.size // 2:
             continue
-        members = _follow(frame, seed[~used[seed]], used, options)
+        members = _prune(frame, _follow(frame, seed[~used[seed]], used, options), options)
         if members.size >= options.min_hits:
             used[members] = True
             k = np.searchsorted(frame.pings, frame.ping[members])
@@ -148,17 +159,27 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
     if idx.size < options.seed_hits:
         return []
     s, y, b = frame.s[idx], frame.y[idx], np.nan_to_num(frame.b_post[idx], nan=0.0)
+    ping_local = np.searchsorted(frame.pings[k0:k1], frame.ping[idx])
+    n_local = k1 - k0
     s_mid = 0.5 * (frame.ping_s[k0] + frame.ping_s[k1 - 1])
     half = max(0.5 * (frame.ping_s[k1 - 1] - frame.ping_s[k0]), options.across_gate_m)
-    # adjacent headings part by one gate at the window's ends: half a bin
+    # adjacent headings part by 1.5 gates at the window's ends: three quarters of a bin
     t_max = math.tan(math.radians(options.max_angle_deg))
-    tans = np.linspace(-t_max, t_max, 2 * int(math.ceil(t_max * half / options.across_gate_m)) + 1)
+    tans = np.linspace(-t_max, t_max, 2 * int(math.ceil(t_max * half / (1.5 * options.across_gate_m))) + 1)
     icpt = y[None, :] - tans[:, None] * (s - s_mid)[None, :]
-    width_y, width_b = 2 * options.across_gate_m, 2 * options.burial_gate_m
+    width_y = 2 * options.across_gate_m
     out = []
-    for oy, ob in ((0.0, 0.0), (0.5, 0.0), (0.0, 0.5), (0.5, 0.5)):
-        iy = np.floor(icpt / width_y + oy).astype(np.int64)
-        ib = np.floor(b / width_b + ob).astype(np.int64)
+    # burial bins of the gate's width, and four times wider for peaks away from nadir whose burial wanders
+    grids = [(oy, ob, w) for w in (2 * options.burial_gate_m, 8 * options.burial_gate_m)
+             for oy, ob in ((0.0, 0.0), (0.5, 0.0), (0.0, 0.5), (0.5, 0.5))]
+    wandering = np.nan_to_num(frame.b_sigma[idx], nan=np.inf) > options.burial_gate_m
+    for oy, ob, width_b in grids:
+        # only the peaks whose burial wanders vote in the wide burial bins (all vote in the fine ones)
+        voters = wandering if width_b > 2 * options.burial_gate_m else np.ones(idx.size, dtype=bool)
+        if voters.sum() < options.seed_hits:
+            continue
+        iy = np.floor(icpt[:, voters] / width_y + oy).astype(np.int64)
+        ib = np.floor(b[voters] / width_b + ob).astype(np.int64)
         iy -= iy.min()
         ib -= ib.min()
         ny, nb = int(iy.max() + 1), int(ib.max() + 1)
@@ -168,15 +189,24 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
         full = np.flatnonzero(counts >= options.seed_hits)
         if not full.size:
             continue
-        jj, dd = np.nonzero(np.isin(cell, full))
-        c = cell[jj, dd]
+        jj, dv = np.nonzero(np.isin(cell, full))
+        c, dd = cell[jj, dv], np.flatnonzero(voters)[dv]
+        # distinct pings per cell, all cells at once
+        pairs = np.unique(c * n_local + ping_local[dd])
+        cells, hits = np.unique(pairs // n_local, return_counts=True)
+        good = hits >= options.seed_hits
+        if not good.any():
+            continue
+        # the strongest cells only: in dense clutter the rest are chance and cost a follow each
+        best = np.argsort(-hits[good], kind="stable")[:MAX_SEEDS_PER_GRID]
+        keep_cells, keep_hits = cells[good][best], hits[good][best]
+        sel = np.isin(c, keep_cells)
+        c, dd = c[sel], dd[sel]
         order = np.argsort(c, kind="stable")
-        c, dd = c[order], dd[order]
-        cuts = np.flatnonzero(np.diff(c)) + 1
-        for members in np.split(idx[dd], cuts):
-            h = np.unique(frame.ping[members]).size
-            if h >= options.seed_hits:
-                out.append((h, members))
+        c, members = c[order], idx[dd[order]]
+        bounds = np.r_[0, np.flatnonzero(np.diff(c)) + 1, c.size]
+        by_cell = dict(zip(keep_cells.tolist(), keep_hits.tolist()))
+        out.extend((by_cell[int(c[a])], members[a:b]) for a, b in zip(bounds[:-1], bounds[1:]))
     return out
 
 
@@ -186,6 +216,26 @@ def _follow(frame: TrackFrame, seed: np.ndarray, used: np.ndarray, options: Line
     for direction in (1, -1):
         hits = _extend(frame, hits, used, options, direction)
     return np.asarray(sorted(hits.values(), key=lambda i: frame.ping[i]), dtype=np.int64)
+
+
+def _prune(frame: TrackFrame, members: np.ndarray, options: LineOptions) -> np.ndarray:
+    """The members that lie within the gates of the whole track: burial within the gate of the track's, offset
+    within the gate of its smoothed path (a seed's detections join before any gate is applied)."""
+    for _ in range(2):
+        if members.size < 3:
+            return members
+        b_hat = burial_estimate(frame.b[members], frame.b_sigma[members])
+        ok = _burial_ok(frame.b[members], frame.b_sigma[members], b_hat, options)
+        k = np.searchsorted(frame.pings, frame.ping[members])
+        track = Track(members=members, first=int(k[0]), last=int(k[-1]))
+        path = smooth_path(frame, track, options.fit_length_m / 2)[k - track.first]
+        slope = np.gradient(path, frame.s[members]) if members.size > 1 and np.ptp(frame.s[members]) > 0 else 0.0
+        gate = np.maximum(options.across_gate_m * np.minimum(np.hypot(1.0, slope), 2.0), 2 * frame.y_sigma[members])
+        ok &= np.abs(frame.y[members] - path) <= gate
+        if ok.all():
+            break
+        members = members[ok]
+    return members
 
 
 def _best_per_ping(frame: TrackFrame, idx: np.ndarray) -> dict:
@@ -207,20 +257,25 @@ def _extend(frame: TrackFrame, hits: dict, used: np.ndarray, options: LineOption
     recent = [hits[q] for q in ks[:options.fit_hits]]  # nearest the growing end first
     k = ks[0]
     misses = 0
+    fit = _local_fit(frame, np.asarray(recent), options)  # refitted after each hit only
     while 0 <= k + direction < frame.pings.size and misses <= options.max_gap_pings:
         k += direction
         sl = frame.at(k)
         if sl.start == sl.stop:
             misses += 1
             continue
-        y_hat, b_hat = _predict(frame, np.asarray(recent), frame.ping_s[k], options)
+        icpt, slope, b_hat = fit
+        y_hat = icpt + slope * frame.ping_s[k]
         cand = np.arange(sl.start, sl.stop)
         cand = cand[~used[cand]]
         dy = np.abs(frame.y[cand] - y_hat)
-        ok = (dy <= options.across_gate_m) & _burial_ok(frame.b[cand], frame.b_sigma[cand], b_hat, options)
+        # the gate is across the line: a line at heading a sweeps y 1/cos(a) faster (at most twice the gate)
+        gate = np.maximum(options.across_gate_m * min(math.hypot(1.0, slope), 2.0), 2 * frame.y_sigma[cand])
+        ok = (dy <= gate) & _burial_ok(frame.b[cand], frame.b_sigma[cand], b_hat, options)
         if ok.any():
             hits[k] = int(cand[ok][np.argmin(dy[ok])])
             recent = [hits[k]] + recent[:options.fit_hits - 1]
+            fit = _local_fit(frame, np.asarray(recent), options)
             misses = 0
         else:
             misses += 1
@@ -233,20 +288,21 @@ def _burial_ok(b: np.ndarray, sigma: np.ndarray, b_hat: float, options: LineOpti
     return ~(np.abs(b - b_hat) > np.maximum(options.burial_gate_m, 2 * sigma))
 
 
-def _predict(frame: TrackFrame, recent: np.ndarray, s_at: float, options: LineOptions) -> tuple:
-    """Offset and burial at along-track distance ``s_at`` from a straight-line fit to the track's nearest hits."""
+def _local_fit(frame: TrackFrame, recent: np.ndarray, options: LineOptions) -> tuple:
+    """``(intercept, slope, burial)``: a straight line ``y = intercept + slope s`` through the track's
+    nearest hits (within ``fit_length_m`` of the newest) and their burial."""
     s, y = frame.s[recent], frame.y[recent]
     near = np.abs(s - s[0]) <= options.fit_length_m
-    s, y = s[near] - s_at, y[near]
+    s, y = s[near], y[near]
     b_hat = burial_estimate(frame.b[recent], frame.b_sigma[recent])
     if s.size < 3:
-        return float(y[0]), b_hat
+        return float(y[0]), 0.0, b_hat
     sm, ym = s.mean(), y.mean()
     var = float(((s - sm) ** 2).sum())
     if var <= 0:
-        return float(ym), b_hat
+        return float(ym), 0.0, b_hat
     slope = float(((s - sm) * (y - ym)).sum()) / var
-    return float(ym - slope * sm), b_hat
+    return float(ym - slope * sm), slope, b_hat
 
 
 def burial_estimate(b: np.ndarray, sigma: np.ndarray) -> float:

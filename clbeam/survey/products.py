@@ -20,6 +20,7 @@ import array
 import dataclasses
 import json
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,7 +46,7 @@ from clbeam.survey.association import associate, describe_objects
 from clbeam.survey.burial import seabed_line
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.inputs import one_line
-from clbeam.survey.line_products import LineDetections, SurveyLines, line_rows, survey_lines
+from clbeam.survey.line_products import LineDetections, SurveyLines, line_rows, survey_lines, track_distance_m
 from clbeam.survey.options import SurveyOptions
 from clbeam.survey.plots import plot_persistence, plot_survey_map
 
@@ -84,6 +85,11 @@ class SurveyProducts:
         UTM zone of the eastings and northings.
     files : dict
         :func:`clbeam.io.survey_store.product_paths`.
+    detections : dict
+        ``ping``, ``y_m`` of the detections, and per survey ping its
+        ``file_index`` and ``file_ping`` (for scoring against a simulation's truth).
+    track_km : float
+        Length of the survey line (km; NaN without navigation or speed).
     """
 
     n_imaged: int
@@ -94,6 +100,8 @@ class SurveyProducts:
     navigation: bool
     utm_epsg: int | None
     files: dict
+    detections: dict = None
+    track_km: float = float("nan")
 
     @property
     def n_pipelines(self) -> int:
@@ -186,7 +194,19 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
         log.warning("survey figures not written: %s", one_line(exc))
     return SurveyProducts(n_imaged=n_imaged, n_peaks=first.n_rows, n_detections=int(det.ping.size),
                           objects=det.objects, lines=lines, navigation=bool(nav.has_nav.any()), utm_epsg=nav.epsg,
-                          files=files)
+                          files=files, track_km=track_length_km(nav, first.per_ping["imaged"]),
+                          detections={"ping": det.ping, "y_m": det.y, "file_index": first.per_ping["file_index"],
+                                      "file_ping": first.per_ping["file_ping"]})
+
+
+def track_length_km(nav: SurveyNavigation, imaged: np.ndarray) -> float:
+    """Length of the survey line over its imaged pings (km): the distance between navigated positions, or the
+    along-track distance from ping time and speed; NaN without either."""
+    pings = np.flatnonzero(imaged)
+    if pings.size < 2:
+        return 0.0 if pings.size else math.nan
+    s, known = track_distance_m(nav, pings)
+    return float(s[-1] - s[0]) / 1000 if known else math.nan
 
 
 def _nan(v) -> float:

@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from survey_common import GRID, N_PINGS, PER_FILE, RUN_CLI, TINY, survey_main
 
-from clbeam import cli, survey
+from clbeam import survey
 from clbeam.constants import KNOT_M_S
 from clbeam.errors import ClbeamError
 from clbeam.io import survey_products
@@ -34,7 +35,6 @@ from clbeam.io.peaks import read_peaks_csv
 from clbeam.io.pingfile import PingFile
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.io.survey_store import LEDGER_DIR
-from clbeam.sim import load_scene, simulate
 from clbeam.survey import (
     AssociationOptions,
     SurveyError,
@@ -47,14 +47,6 @@ from clbeam.survey import (
     to_utm,
     utm_epsg,
 )
-
-N_PINGS = 12
-PER_FILE = 4
-GRID = ["--range-res", "0.5", "--angle-res", "0.25", "--min-range", "200", "--max-range", "380",
-        "--angles", "-60", "60"]
-#: a small window around pipeline A for the runs whose cost does not matter
-TINY = ["--range-res", "0.5", "--angle-res", "0.5", "--min-range", "300", "--max-range", "380",
-        "--angles", "-60", "-40"]
 
 #: WGS84 ellipsoid, for positions computed by hand
 A_M, F = 6378137.0, 1 / 298.257223563
@@ -69,33 +61,6 @@ def meridian_radius_m(lat_deg):
 def prime_vertical_radius_m(lat_deg):
     s = math.sin(math.radians(lat_deg))
     return A_M / math.sqrt(1 - E2 * s * s)
-
-
-def survey_main(argv) -> int:
-    """``clbeam`` in this process."""
-    return cli.main(list(argv))
-
-
-RUN_CLI = "import sys\nfrom clbeam import cli\nsys.exit(cli.main(sys.argv[1:]))\n"
-
-
-@pytest.fixture(scope="module")
-def line(tmp_path_factory):
-    """Line 1, 12 pings, as three ping files of 4 pings."""
-    ds = simulate(load_scene("line1", pings=N_PINGS, max_range_m=380))
-    d = tmp_path_factory.mktemp("line")
-    paths = [write_ping_file(ds.isel(ping=slice(k, k + PER_FILE)), d / f"line1_{k // PER_FILE}.nc")
-             for k in range(0, N_PINGS, PER_FILE)]
-    return ds, paths
-
-
-@pytest.fixture(scope="module")
-def reference(line, tmp_path_factory):
-    """The uninterrupted single-process survey with images."""
-    _, paths = line
-    out = tmp_path_factory.mktemp("ref") / "ref.zarr"
-    assert survey_main(["survey", *map(str, paths), "-o", str(out), *GRID, "--images", "-q"]) == 0
-    return out
 
 
 def ledger_count(out: Path) -> int:

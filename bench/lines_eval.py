@@ -1,0 +1,126 @@
+"""Lines found in simulated surveys, scored against the simulator's truth: the evaluation table of the README.
+
+Simulates each scene (cached in the work folder), runs ``clbeam survey``'s
+processing on it (paper grid, 0.2 m x 0.1 degree, default imaging with the
+seabed band 5 m above to 40 m below the seabed), builds the lines and
+scores them (:mod:`clbeam.evaluation.line_truth`).  Prints a Markdown table
+per scene and the false-line rate of the clutter-only scene against the
+score threshold, and times the line building of a 1,000-ping survey
+(synthetic detections at the simulated lines' density).
+
+    python bench/lines_eval.py [--work DIR] [--scenes line1,line4,cross,boulders,clutter]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+
+from clbeam.evaluation.line_truth import score_survey
+from clbeam.imaging.imager import ImagingOptions
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.model.grid import PolarGrid
+from clbeam.sim import load_scene, simulate
+from clbeam.survey import SurveyOptions, run_survey, scan_inputs
+from clbeam.survey.line_options import LineOptions
+from clbeam.survey.products import finalize_survey
+
+SCENES = ("line1", "line4", "cross", "boulders", "clutter")
+
+
+def survey_scene(name: str, work: Path, lines: LineOptions):
+    """Simulate (once) and survey one scene; its products."""
+    nc = work / f"{name}.nc"
+    if not nc.exists():
+        write_ping_file(simulate(load_scene(name)), nc)
+    scan = scan_inputs([nc])
+    grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=scan.max_range_m, min_range_m=0.0,
+                             angles_deg=(-80.0, 80.0))
+    opts = SurveyOptions(grid=grid, imaging=ImagingOptions(seabed_band_m=(5.0, 40.0)), lines=lines)
+    out = work / f"{name}.zarr"
+    res = run_survey(scan, out, opts)
+    return res, nc, out, opts
+
+
+def scene_rows(name: str, products, nc: Path) -> list:
+    """Table rows of one scene."""
+    scored = score_survey(products, [nc])
+    if scored is None:
+        return []
+    rows, summary = scored
+    out = []
+    for r in rows:
+        out.append(f"| {name} | {r['target']} | {r['detectable_pings']} | {r['pings_on_line']} "
+                   f"({100 * r['on_line_fraction']:.0f} %) | {r['fragments']} | {r['position_rms_m']:.2f} | "
+                   f"{r['burial_error_m']:+.2f} | {summary['false_lines']} |")
+    if not rows:
+        out.append(f"| {name} | (none) | | | | | | {summary['false_lines']} |")
+    return out
+
+
+def false_rate(out: Path, opts: SurveyOptions, km: float, thresholds=(-2, -1, 0, 1, 2, 3, 5)) -> list:
+    """Lines of kind pipeline (and of any kind) per km against the score threshold, on a clutter-only survey
+    (the lines built once with no threshold, counted by score)."""
+    pr = finalize_survey(out, SurveyOptions(grid=opts.grid, imaging=opts.imaging, lines=LineOptions(min_score=-1e9)))
+    rows = []
+    for s in thresholds:
+        kept = [r for r in pr.lines.rows if r["score"] >= s]
+        n_pipe = sum(r["kind"] == "pipeline" for r in kept)
+        rows.append(f"| {s:g} | {n_pipe} | {n_pipe / km:.2f} | {len(kept)} |")
+    finalize_survey(out, opts)  # the products with the default threshold again
+    return rows
+
+
+def time_thousand_pings(density_per_m: float = 0.05, n_pings: int = 1000) -> str:
+    """Line building of a synthetic 1,000-ping survey: seconds and peak memory of the search."""
+    from clbeam.survey.lines import TrackFrame, find_tracks
+
+    rng = np.random.default_rng(0)
+    ping, y, b = [], [], []
+    for k in range(n_pings):
+        n = rng.poisson(density_per_m * 1400)
+        ping += [k] * (n + 2)
+        y += list(rng.uniform(-700, 700, n)) + [-300 + 0.05 * k * 8 + rng.normal(0, 0.3), 450 + rng.normal(0, 0.3)]
+        b += list(rng.uniform(-2, 25, n)) + [1.0, 1.2]
+    ping, y, b = map(np.asarray, (ping, y, b))
+    s = np.arange(n_pings) * 8.0
+    frame = TrackFrame(ping=ping, s=s[ping], y=y, b=b, cf=np.full(ping.size, 0.6), b_sigma=np.full(ping.size, 0.2),
+                       b_post=b, pings=np.arange(n_pings), ping_s=s)
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    tracks = find_tracks(frame, LineOptions())
+    dt = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return (f"{n_pings} pings, {ping.size} detections ({density_per_m:g} per m across per ping): {len(tracks)} "
+            f"tracks in {dt:.2f} s, peak memory of the search {peak / 1e6:.1f} MB")
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--work", default="lines_eval", type=Path)
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    args = ap.parse_args(argv)
+    args.work.mkdir(parents=True, exist_ok=True)
+    table = ["| scene | pipeline | detectable pings | on its line | fragments | position RMS (m) | burial error (m) "
+             "| false pipeline lines |", "|---|---|---|---|---|---|---|---|"]
+    for name in args.scenes.split(","):
+        t0 = time.perf_counter()
+        res, nc, out, opts = survey_scene(name, args.work, LineOptions())
+        table += scene_rows(name, res.products, nc)
+        print(f"{name}: surveyed in {time.perf_counter() - t0:.0f} s, {res.products.n_pipelines} pipeline line(s)")
+        if name == "clutter":
+            km = res.products.track_km
+            print(f"\nclutter only, {km:.2f} km: pipeline lines against the score threshold\n")
+            print("| min score | pipeline lines | per km | lines of any kind |\n|---|---|---|---|")
+            print("\n".join(false_rate(out, opts, km)))
+    print("\n" + "\n".join(table))
+    print("\n" + time_thousand_pings())
+
+
+if __name__ == "__main__":
+    main()

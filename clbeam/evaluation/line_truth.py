@@ -1,0 +1,195 @@
+"""Survey lines scored against the simulator's truth.
+
+A simulated ping file holds, per ping and target, where the target crosses
+the ping's image plane (``truth_target_y``, ``truth_target_z``, earth
+frame) and the seabed above it (``truth_target_seabed_z``); the attribute
+``target_kinds`` says which targets are lines.  :func:`line_truth` gathers
+them for the survey's pings (through the store's ``file_index`` and
+``file_ping``); :func:`score_lines` reports, per line target:
+
+* **detectable** pings: those with a detection (CF above the map
+  threshold) within ``match_m`` of the target across the track;
+* pings **on its line**: detectable pings where the ``pipeline`` line that
+  follows the target best passes within ``match_m`` of it;
+
+"Of the target" means of either place a correct imager shows it: where it
+crosses the ping's plane (``truth_target_y``: a rough pipe's diffuse echo,
+or any pipe near broadside) or the image of its point nearest the source
+(``truth_target_image_y``: a smooth pipe's specular echo, which for a pipe
+at a heading ``a`` to the ping's plane lies ``y (1 - cos^2 a)`` nearer the
+track, the main-lobe arcs of Holland et al. 2024); the errors are taken to
+the nearer of the two.
+* **fragments**: ``pipeline`` lines that pass within ``match_m`` of it in
+  at least three pings;
+* the line's **position error** (RMS of its cross-track offset minus the
+  target's, over the pings it spans near the target: horizontal, in the
+  ping's plane) and **burial error** (its burial minus the target's axis
+  depth below the seabed);
+
+and **false lines**: ``pipeline`` lines near no line target, per km of track.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: distance across the track within which a detection or a line is on a target (m)
+MATCH_M = 2.0
+
+
+@dataclass
+class LineTruth:
+    """The line targets of a simulated survey, per survey ping.
+
+    Attributes
+    ----------
+    names : list of str
+        Target names.
+    y, burial : numpy.ndarray
+        ``(n_pings, n_targets)`` cross-track offset (m, earth frame) and
+        axis depth below the seabed (m); NaN for pings not simulated.
+    image_y : numpy.ndarray
+        ``(n_pings, n_targets)`` cross-track offset of the image of the
+        target's nearest point (m).
+    """
+
+    names: list
+    y: np.ndarray
+    burial: np.ndarray
+    image_y: np.ndarray = None
+
+    def distance(self, pings: np.ndarray, y: np.ndarray, target: int) -> np.ndarray:
+        """Distance across the track (m) from offsets ``y`` of ``pings`` to the nearer place of ``target``."""
+        d = np.abs(y - self.y[pings, target])
+        if self.image_y is not None:
+            d = np.fmin(d, np.abs(y - self.image_y[pings, target]))
+        return d
+
+
+def line_truth(datasets: list, file_index: np.ndarray, file_ping: np.ndarray) -> LineTruth | None:
+    """The line targets' truth for every survey ping, or ``None`` when the files have none.
+
+    Parameters
+    ----------
+    datasets : list of xarray.Dataset
+        The survey's input ping files, in survey order.
+    file_index, file_ping : numpy.ndarray
+        ``(n_pings,)`` input file and ping within it of each survey ping
+        (-1: not imaged).
+    """
+    per_file = []
+    for ds in datasets:
+        if "truth_target_y" not in ds.variables:
+            return None
+        kinds = str(ds.attrs.get("target_kinds", "")).split(",")
+        lines = [i for i, k in enumerate(kinds) if k.strip() == "line"]
+        names = [str(v) for v in np.asarray(ds["target"].values)[lines]] if "target" in ds.coords else \
+            [f"target {i}" for i in lines]
+        image = ds["truth_target_image_y"].values if "truth_target_image_y" in ds.variables else \
+            ds["truth_target_y"].values
+        per_file.append((names, np.asarray(ds["truth_target_y"].values)[:, lines],
+                         (np.asarray(ds["truth_target_z"].values) - np.asarray(ds["truth_target_seabed_z"].values))
+                         [:, lines], np.asarray(image)[:, lines]))
+    if not per_file or any(f[0] != per_file[0][0] for f in per_file):
+        return None
+    names = per_file[0][0]
+    y = np.full((file_index.size, len(names)), np.nan)
+    burial, image_y = np.full_like(y, np.nan), np.full_like(y, np.nan)
+    ok = (file_index >= 0) & (file_ping >= 0)
+    for g in np.flatnonzero(ok):
+        _, fy, fb, fi = per_file[int(file_index[g])]
+        y[g], burial[g], image_y[g] = fy[int(file_ping[g])], fb[int(file_ping[g])], fi[int(file_ping[g])]
+    return LineTruth(names, y, burial, image_y)
+
+
+def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, track_km: float,
+                *, match_m: float = MATCH_M) -> tuple[list, dict]:
+    """Per line target, how the survey's ``pipeline`` lines found it; and the false lines.
+
+    Parameters
+    ----------
+    lines : SurveyLines
+        :func:`clbeam.survey.line_products.survey_lines`.
+    truth : LineTruth
+    det_ping, det_y : numpy.ndarray
+        ``(k,)`` survey ping and cross-track offset (m) of every detection.
+    track_km : float
+        Length of the survey line (km).
+    match_m : float
+        Cross-track distance within which a detection or a line is on a target (m).
+
+    Returns
+    -------
+    (list of dict, dict)
+        Per target: ``target``, ``detectable_pings``, ``pings_on_line``,
+        ``on_line_fraction``, ``fragments``, ``line`` (-1: none),
+        ``position_rms_m``, ``burial_error_m``; and ``false_lines``,
+        ``false_lines_per_km``, ``track_km``.
+    """
+    pipes = [k for k, r in enumerate(lines.rows) if r["kind"] == "pipeline"]
+    near = {}  # (line, target) -> pings where the line passes within match_m
+    for k in pipes:
+        pings, y = lines.ping_paths[k]
+        for t in range(len(truth.names)):
+            near[k, t] = pings[truth.distance(pings, y, t) <= match_m]
+    rows = []
+    for t, name in enumerate(truth.names):
+        hit = truth.distance(det_ping, det_y, t) <= match_m
+        detectable = np.unique(det_ping[hit])
+        cover = {k: np.intersect1d(near[k, t], detectable).size for k in pipes}
+        best = max(cover, key=cover.get) if cover and max(cover.values()) > 0 else -1
+        frags = sum(near[k, t].size >= 3 for k in pipes)
+        row = {"target": name, "detectable_pings": int(detectable.size),
+               "pings_on_line": int(cover.get(best, 0)),
+               "on_line_fraction": cover.get(best, 0) / detectable.size if detectable.size else math.nan,
+               "fragments": int(frags), "line": int(lines.rows[best]["line"]) if best >= 0 else -1,
+               "position_rms_m": math.nan, "burial_error_m": math.nan}
+        if best >= 0:
+            pings, y = lines.ping_paths[best]
+            on = np.isin(pings, near[best, t])
+            row["position_rms_m"] = float(np.sqrt(np.mean(truth.distance(pings[on], y[on], t) ** 2)))
+            row["burial_error_m"] = float(lines.rows[best]["burial_m"] - np.nanmean(truth.burial[pings[on], t]))
+        rows.append(row)
+    false = sum(all(near[k, t].size < 3 for t in range(len(truth.names))) for k in pipes)
+    return rows, {"false_lines": int(false), "false_lines_per_km": false / track_km if track_km > 0 else math.nan,
+                  "track_km": float(track_km)}
+
+
+def score_survey(products, input_paths: list, *, match_m: float = MATCH_M) -> tuple[list, dict] | None:
+    """:func:`score_lines` for a survey run on simulated files (``None`` when they hold no line truth).
+
+    Parameters
+    ----------
+    products : SurveyProducts
+        :func:`clbeam.survey.products.finalize_survey` (or a run's ``products``).
+    input_paths : list of path-like
+        The survey's input ping files, in survey order.
+    """
+    from clbeam.io.pingfile import open_dataset
+
+    det = products.detections
+    datasets = [open_dataset(p) for p in input_paths]
+    try:
+        truth = line_truth(datasets, np.asarray(det["file_index"]), np.asarray(det["file_ping"]))
+    finally:
+        for ds in datasets:
+            ds.close()
+    if truth is None:
+        return None
+    return score_lines(products.lines, truth, np.asarray(det["ping"]), np.asarray(det["y_m"]), products.track_km,
+                       match_m=match_m)
+
+
+def truth_summary(rows: list, summary: dict) -> list:
+    """Lines of text: one per target, then the false lines."""
+    out = []
+    for r in rows:
+        out.append(f"truth {r['target']}: on line {r['line']} in {r['pings_on_line']} of {r['detectable_pings']} "
+                   f"detectable pings ({100 * r['on_line_fraction']:.0f} %), {r['fragments']} fragment(s), "
+                   f"position RMS {r['position_rms_m']:.2f} m, burial error {r['burial_error_m']:+.2f} m")
+    out.append(f"truth: {summary['false_lines']} false pipeline line(s) over {summary['track_km']:.2f} km "
+               f"({summary['false_lines_per_km']:.2f} per km)")
+    return out

@@ -1,0 +1,139 @@
+"""The survey's lines as products: tables, GeoJSON, the peaks' line column,
+scoring against the simulator's truth, reruns, and the bad cases (no
+detections, one ping, no navigation).
+
+The survey is the 12-ping cut of Line 1 of the other survey tests
+(``conftest.py``): pipeline A runs along the track 275 m to port, 1 m
+below a seabed 225 m below the transducers.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+from survey_common import GRID, LINES, TINY, survey_main
+
+from clbeam.evaluation.line_truth import LineTruth, score_lines
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS
+from clbeam.survey import open_survey, product_paths
+from clbeam.survey.line_products import SurveyLines
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_pipeline_a_is_one_pipeline_line_at_its_true_place_in_every_product(line, reference):
+    """Pipeline A is one line of kind pipeline, within 1 m across the track of
+    where it crosses each ping's plane (truth_target_y), its burial within
+    three of its standard errors of the truth (on this coarse grid, at 50
+    degrees from nadir, not resolved to 0.5 m); the CSV, the GeoJSON, the
+    group ``lines`` and the peaks' ``line`` column say the same."""
+    ds, _ = line
+    files = product_paths(reference)
+    rows = read_csv(files["lines_csv"])
+    assert list(rows[0])[:len(LINE_COLUMNS)] == list(LINE_COLUMNS)
+    pipes = [r for r in rows if r["kind"] == "pipeline"]
+    assert len(pipes) == 1
+    a = pipes[0]
+    truth_y = ds["truth_target_y"].values[:, 0]
+    truth_burial = ds["truth_target_z"].values[:, 0] - ds["truth_target_seabed_z"].values[:, 0]
+    assert abs(float(a["mean_y_m"]) - truth_y.mean()) < 1.0
+    assert abs(float(a["burial_m"]) - truth_burial.mean()) < max(3 * float(a["burial_error_m"]), 0.5)
+    assert a["burial_resolved"] == ("1" if float(a["burial_error_m"]) <= 0.5 else "0")
+    assert int(a["n_pings"]) >= 2 / 3 * len(truth_y)
+    # the peaks on the line: one per ping, all detections, as many as n_pings
+    peaks = open_survey(reference, "peaks").load()
+    on = peaks["line"].values == int(a["line"])
+    assert np.all(peaks["cf"].values[on] > 0.4)
+    assert np.unique(peaks["ping"].values[on]).size == on.sum() == int(a["n_pings"])
+    assert np.all(np.abs(peaks["y_m"].values[on] - truth_y[peaks["ping"].values[on]]) < 6.0)
+    # GeoJSON: one LineString per row, its ends those of the CSV
+    gj = json.loads(files["lines_geojson"].read_text())
+    assert len(gj["features"]) == len(rows)
+    f = gj["features"][int(a["line"])]
+    assert f["geometry"]["type"] == "LineString" and f["properties"]["kind"] == "pipeline"
+    assert f["geometry"]["coordinates"][0] == pytest.approx([float(a["start_longitude_deg"]),
+                                                             float(a["start_latitude_deg"])], abs=1e-9)
+    # the Zarr group: kinds coded with CF flags
+    g = open_survey(reference, "lines").load()
+    meanings = g["kind"].attrs["flag_meanings"].split()
+    assert meanings == list(LINE_KINDS)
+    assert [meanings[int(k)] for k in g["kind"].values] == [r["kind"] for r in rows]
+
+
+def test_truth_report_of_the_command_line(line, reference, tmp_path, capsys):
+    """``--truth`` on a rerun (nothing imaged again) reports pipeline A on one
+    line over at least 80 % of its detectable pings, 1 fragment, no false line."""
+    out = tmp_path / "copy.zarr"
+    shutil.copytree(reference, out)
+    _, paths = line
+    assert survey_main(["survey", *map(str, paths), "-o", str(out), *GRID, *LINES, "--images", "--truth"]) == 0
+    text = capsys.readouterr().out
+    assert "0 imaged now, 12 done before" in text
+    report = [s for s in text.splitlines() if s.startswith("truth A:")][0]
+    on, detectable = (int(v) for v in report.split(" in ")[1].split(" detectable")[0].split(" of "))
+    assert on >= 0.8 * detectable and "1 fragment(s)" in report
+    assert "truth: 0 false pipeline line(s)" in text
+
+
+def test_rerun_with_other_line_options_rebuilds_the_lines_without_imaging(reference, line, tmp_path, capsys):
+    out = tmp_path / "copy.zarr"
+    shutil.copytree(reference, out)
+    _, paths = line
+    assert survey_main(["survey", *map(str, paths), "-o", str(out), *GRID, "--images", "--line-min-score",
+                        "1000"]) == 0
+    text = capsys.readouterr().out
+    assert "0 imaged now" in text and "lines: 0 pipeline(s) among 0 line(s)" in text
+    assert read_csv(product_paths(out)["lines_csv"]) == []
+    assert np.all(open_survey(out, "peaks")["line"].values == -1)
+
+
+def test_no_detection_one_ping_and_no_navigation_give_empty_or_unscaled_lines(line, tmp_path, capsys):
+    ds, paths = line
+    # no detection: every CF below a map threshold of 1
+    out = tmp_path / "none.zarr"
+    assert survey_main(["survey", str(paths[0]), "-o", str(out), *TINY, "--map-threshold", "1.0"]) == 0
+    assert "lines: 0 pipeline(s) among 0 line(s)" in capsys.readouterr().out
+    assert list(csv.reader(open(product_paths(out)["lines_csv"])))[0][:len(LINE_COLUMNS)] == list(LINE_COLUMNS)
+    # one ping: no line
+    one = write_ping_file(ds.isel(ping=slice(0, 1)), tmp_path / "one.nc")
+    assert survey_main(["survey", str(one), "-o", str(tmp_path / "one.zarr"), *TINY]) == 0
+    assert "among 0 line(s)" in capsys.readouterr().out
+    # no navigation and no speed: lines in pings, lengths and headings unknown, no GeoJSON
+    f = write_ping_file(ds.drop_vars(["latitude", "longitude", "heading"]), tmp_path / "nonav.nc")
+    out = tmp_path / "nonav.zarr"
+    assert survey_main(["survey", str(f), "-o", str(out), *TINY, *LINES]) == 0
+    rows = read_csv(product_paths(out)["lines_csv"])
+    assert not product_paths(out)["lines_geojson"].exists()
+    assert rows and all(r["length_m"] == "" and r["heading_deg"] == "" for r in rows)
+    assert "start_along_track_m" in rows[0]
+
+
+def test_truth_scoring_counts_fragments_false_lines_and_errors_by_hand():
+    """Two pipeline lines on target 0 (pings 0-9 and 12-19, 0.5 m off), one on
+    no target: 2 fragments, the longer one chosen, RMS 0.5 m, one false line
+    over 2 km."""
+    n = 20
+    truth = LineTruth(["T"], np.full((n, 1), -100.0), np.full((n, 1), 1.0), np.full((n, 1), -100.0))
+    rows = [{"line": 0, "kind": "pipeline", "burial_m": 1.3}, {"line": 1, "kind": "pipeline", "burial_m": 0.9},
+            {"line": 2, "kind": "pipeline", "burial_m": 1.0}, {"line": 3, "kind": "seabed", "burial_m": 0.0}]
+    p0, p1 = np.arange(0, 10), np.arange(12, 20)
+    paths = [(p0, np.full(p0.size, -99.5)), (p1, np.full(p1.size, -100.5)), (p0, np.full(p0.size, 50.0)),
+             (p0, np.full(p0.size, -100.0))]
+    lines = SurveyLines(rows, [None] * 4, np.zeros(0), 4, None, 1.0, paths)
+    det_ping = np.r_[p0, p1]
+    det_y = np.full(det_ping.size, -100.2)
+    scored, summary = score_lines(lines, truth, det_ping, det_y, 2.0)
+    r = scored[0]
+    assert r["detectable_pings"] == 18 and r["pings_on_line"] == 10 and r["fragments"] == 2 and r["line"] == 0
+    assert r["position_rms_m"] == pytest.approx(0.5) and r["burial_error_m"] == pytest.approx(0.3)
+    assert summary["false_lines"] == 1 and summary["false_lines_per_km"] == pytest.approx(0.5)
+    assert math.isclose(r["on_line_fraction"], 10 / 18)

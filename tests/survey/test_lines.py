@@ -1,0 +1,223 @@
+"""The line search (clbeam.survey.lines, line_score, burial) on synthetic detections whose truth is known.
+
+Detections are drawn ping by ping: each line gives one (with a detection
+probability) at its exact cross-track offset plus Gaussian scatter, clutter
+is a Poisson field uniform across the swath and in burial.  The tracks must
+recover the lines' own detections; the scores must follow the binomial tail
+(scipy) and bound the chance lines of clutter alone.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import binom
+
+from clbeam.errors import OptionError
+from clbeam.survey.burial import arc_constrained, seabed_line
+from clbeam.survey.line_options import LineOptions
+from clbeam.survey.line_products import line_kind
+from clbeam.survey.line_score import SearchSize, line_score, log10_binomial_tail
+from clbeam.survey.line_score import tests_per_km as n_tests_per_km
+from clbeam.survey.lines import TrackFrame, find_tracks, line_burial, smooth_path
+
+SPACING = 8.0
+SWATH = (-700.0, 700.0)
+BURIAL_RANGE = (-2.0, 25.0)
+
+
+def line_y(s, y0, heading_deg, curvature_deg_per_km):
+    """Cross-track offset of a circular arc in the track frame at along-track distances ``s`` (m)."""
+    d0, k = math.radians(heading_deg), math.radians(curvature_deg_per_km) / 1000
+    if abs(k) < 1e-12:
+        return y0 + s * math.tan(d0)
+    # x(s') = (sin(d0 + k s') - sin d0) / k; solve for s' at x = s, then y
+    arg = np.clip(np.sin(d0) + k * s, -1, 1)
+    d = np.arcsin(arg)
+    return y0 - (np.cos(d) - math.cos(d0)) / k
+
+
+def synthetic_frame(n_pings, lines, clutter_per_m, *, seed=0, scatter_m=0.3, sigma_b=0.2):
+    """A TrackFrame of lines and clutter, and each detection's true line (-1: clutter).
+
+    ``lines``: dicts with ``y0``, ``heading``, ``curvature``, ``burial``,
+    ``p`` (detection probability) and ``gap`` (ping range without detections).
+    """
+    rng = np.random.default_rng(seed)
+    ping, y, b, owner = [], [], [], []
+    s_ping = np.arange(n_pings) * SPACING
+    for k in range(n_pings):
+        for j, ln in enumerate(lines):
+            gap = ln.get("gap", (-1, -1))
+            if gap[0] <= k <= gap[1] or rng.random() > ln.get("p", 0.9):
+                continue
+            ping.append(k)
+            y.append(float(line_y(s_ping[k], ln["y0"], ln.get("heading", 0.0), ln.get("curvature", 0.0)))
+                     + rng.normal(0, scatter_m))
+            b.append(ln.get("burial", 1.0) + rng.normal(0, sigma_b))
+            owner.append(j)
+        n_c = rng.poisson(clutter_per_m * (SWATH[1] - SWATH[0]))
+        ping += [k] * n_c
+        y += list(rng.uniform(*SWATH, n_c))
+        b += list(rng.uniform(*BURIAL_RANGE, n_c))
+        owner += [-1] * n_c
+    ping, y, b, owner = map(np.asarray, (ping, y, b, owner))
+    order = np.argsort(ping, kind="stable")
+    ping, y, b, owner = ping[order], y[order], b[order], owner[order]
+    sig = np.full(ping.size, sigma_b)
+    frame = TrackFrame(ping=ping, s=s_ping[ping], y=y, b=b, cf=np.full(ping.size, 0.6), b_sigma=sig, b_post=b,
+                       pings=np.arange(n_pings), ping_s=s_ping)
+    return frame, owner
+
+
+def track_owners(frame, tracks, owner):
+    """Per track, the line most of its detections come from and the share they make."""
+    out = []
+    for t in tracks:
+        o = owner[t.members]
+        vals, counts = np.unique(o, return_counts=True)
+        out.append((int(vals[np.argmax(counts)]), counts.max() / o.size))
+    return out
+
+
+@pytest.mark.parametrize("heading, curvature", [(0.0, 0.0), (35.0, 0.0), (-55.0, 0.0), (10.0, 30.0), (-20.0, -30.0)])
+def test_one_line_at_any_heading_and_bend_is_one_track_of_its_own_detections(heading, curvature):
+    """A line at up to 55 degrees to the track, or bending 30 degrees per km,
+    in clutter of one detection per 10 m across each ping (the density of
+    the simulated Line 1): one track holds at least 90 % of its detections,
+    and 95 % of that track's detections are its own."""
+    ln = {"y0": -150.0 if heading > 0 else 150.0, "heading": heading, "curvature": curvature, "p": 0.85}
+    frame, owner = synthetic_frame(90, [ln], 0.1, seed=1)
+    tracks = find_tracks(frame, LineOptions())
+    mine = [t for t, (o, share) in zip(tracks, track_owners(frame, tracks, owner)) if o == 0]
+    assert len(mine) == 1
+    t = mine[0]
+    assert np.mean(owner[t.members] == 0) >= 0.95
+    assert np.sum(owner[t.members] == 0) >= 0.9 * np.sum(owner == 0)
+    # the smoothed path follows the truth to a fraction of the gate
+    truth = line_y(frame.ping_s[t.first:t.last + 1], ln["y0"], heading, curvature)
+    assert np.sqrt(np.mean((smooth_path(frame, t, 60.0) - truth) ** 2)) < 0.3
+
+
+def test_a_gap_of_several_pings_is_bridged_and_a_longer_one_splits():
+    """A gap of 6 pings (the default largest) stays one track; a gap of 12 gives two."""
+    for gap, n_tracks in (((30, 35), 1), ((30, 41), 2)):
+        frame, owner = synthetic_frame(80, [{"y0": 300.0, "heading": 15.0, "p": 0.95, "gap": gap}], 0.05, seed=2)
+        tracks = find_tracks(frame, LineOptions())
+        mine = [t for t, (o, _) in zip(tracks, track_owners(frame, tracks, owner)) if o == 0]
+        assert len(mine) == n_tracks, gap
+
+
+def test_parallel_lines_at_different_burials_stay_apart():
+    """Two lines 2 m apart across the track, one on the seabed, one 3 m deep:
+    the burial gate keeps them two tracks."""
+    lines = [{"y0": -400.0, "burial": 0.0, "p": 0.9}, {"y0": -398.0, "burial": 3.0, "p": 0.9}]
+    frame, owner = synthetic_frame(60, lines, 0.02, seed=3)
+    tracks = find_tracks(frame, LineOptions())
+    owners = track_owners(frame, tracks, owner)
+    for j in (0, 1):
+        best = [share for o, share in owners if o == j]
+        assert len(best) == 1 and best[0] >= 0.9
+
+
+def test_binomial_tail_equals_scipy_far_into_the_tail():
+    for hits, trials, p in [(1, 1, 0.3), (5, 10, 0.1), (50, 56, 0.1), (100, 1000, 0.01), (7, 7, 1e-6)]:
+        assert log10_binomial_tail(hits, trials, p) == pytest.approx(binom.logsf(hits - 1, trials, p) / math.log(10),
+                                                                     rel=1e-9, abs=1e-12)
+    # where scipy's tail underflows to 0, the sum in logs goes on: P(X = n) = p^n exactly
+    assert log10_binomial_tail(60, 60, 1e-6) == pytest.approx(-360.0)
+    assert log10_binomial_tail(0, 10, 0.5) == 0.0
+    assert log10_binomial_tail(11, 10, 0.5) == -math.inf
+
+
+def test_score_is_minus_log10_of_tests_times_tail():
+    size = SearchSize(spacing_m=8.0, swath_m=1400.0, burial_span_m=27.0)
+    density = 0.1 / 27.0                        # 0.1 per m across, spread over 27 m of burial, per ping
+    p = -math.expm1(-density * 2 * 1.5 * 2 * 0.5)
+    n = n_tests_per_km(size, 40, 1.5, 0.5, 60.0)
+    # by hand: starts 125/km, offsets 1400/3, burials 27, headings 2 tan60 320 m / 3 m + 1, lengths 40
+    assert n == pytest.approx(125 * (1400 / 3) * 27 * (2 * math.tan(math.radians(60)) * 320 / 3 + 1) * 40)
+    s = line_score(30, 40, density, 1.5, 0.5, size, 60.0)
+    assert s == pytest.approx(-(math.log10(n) + binom.logsf(29, 40, p) / math.log(10)))
+
+
+@pytest.mark.slow
+def test_clutter_alone_gives_fewer_chance_lines_than_the_score_promises():
+    """Independent uniform clutter at Line 1's density over 4 km: the lines
+    scoring at least 0 (one chance line per km promised at most) number at
+    most 4, and none reaches the default threshold's... The bound is
+    a-contrario: the count of tests overcounts, so the rate is far below."""
+    frame, _ = synthetic_frame(500, [], 0.1, seed=5)
+    tracks = find_tracks(frame, LineOptions())
+    size = SearchSize(spacing_m=SPACING, swath_m=SWATH[1] - SWATH[0], burial_span_m=BURIAL_RANGE[1] - BURIAL_RANGE[0])
+    density = 0.1 / (BURIAL_RANGE[1] - BURIAL_RANGE[0])
+    scores = [line_score(t.members.size, t.last - t.first + 1, density, 1.5, 0.5, size, 60.0) for t in tracks]
+    km = 500 * SPACING / 1000
+    assert sum(s >= 0 for s in scores) <= 1.0 * km
+    assert sum(s >= LineOptions().min_score for s in scores) <= 0.1 * km + 1
+
+
+def test_seabed_line_is_the_shallowest_well_supported_plane_not_the_strongest_horizon():
+    """Peaks on a sloping seabed, on a horizon 20 m below it holding 1.5 times
+    as many, and noise: the fit is the seabed's (depth within 5 cm, slope within 1e-4)."""
+    rng = np.random.default_rng(4)
+    z0, slope = 225.0, 0.014
+    ys = rng.uniform(-600, 600, 80)
+    yh = rng.uniform(-600, 600, 120)
+    yn = rng.uniform(-600, 600, 20)
+    y = np.r_[ys, yh, yn]
+    z = np.r_[z0 + slope * ys + rng.normal(0, 0.1, ys.size), z0 + 20 + slope * yh + rng.normal(0, 0.1, yh.size),
+              rng.uniform(200, 260, yn.size)]
+    fit = seabed_line(y, z)
+    assert fit[0] == pytest.approx(z0, abs=0.05) and fit[1] == pytest.approx(slope, abs=1e-4)
+    assert seabed_line(y[:4], z[:4]) is None
+
+
+def test_arc_constraint_keeps_a_nadir_peak_and_moves_a_far_one_along_its_arc_onto_the_prior():
+    """Near nadir the angle is sharp: the peak stays.  At 75 degrees a peak
+    10 m above its true place (slid along its arc) moves back along the arc
+    (its range kept to second order) to about the prior's burial."""
+    seabed = (225.0, 0.0)
+    y, b, sd, post, _ = arc_constrained([10.0], [226.0], (0.0, 0.0), seabed)
+    assert y[0] == pytest.approx(10.0, abs=0.01) and b[0] == pytest.approx(1.0) and post[0] == pytest.approx(1.0, abs=0.01)
+    r, th = 900.0, math.radians(75.0)
+    th_slid = th + 10 / r  # 10 m along the arc, towards endfire: shallower
+    yy, zz = r * math.sin(th_slid), r * math.cos(th_slid)
+    y2, b2, sd2, post2, _ = arc_constrained([yy], [zz], (0.0, 0.0), seabed)
+    assert sd2[0] > 3.0                                   # the burial of one far peak is not measured
+    assert abs(post2[0] - 1.0) < 0.3 * abs(b2[0] - 1.0)   # moved most of the way to the prior
+    z2 = zz + (post2[0] - b2[0])
+    assert math.hypot(y2[0], z2) == pytest.approx(r, abs=(10 ** 2) / (2 * r) + 0.01)
+
+
+def test_line_burial_weights_by_precision_and_drops_outliers():
+    b = np.r_[np.full(20, 1.0), 12.0, np.full(10, -6.0)]
+    sig = np.r_[np.full(20, 0.3), 0.3, np.full(10, 10.0)]
+    est, se, spread = line_burial(b, sig)
+    # the far detections weigh (0.3/10)^2 each; the outlier at 12 m is more than 3 sigma off
+    w = np.r_[np.full(20, 1 / 0.09), np.full(10, 1 / 100)]
+    expected = (w * np.r_[np.full(20, 1.0), np.full(10, -6.0)]).sum() / w.sum()
+    assert est == pytest.approx(expected) and se == pytest.approx(1 / math.sqrt(w.sum()))
+    assert all(math.isnan(v) for v in line_burial(np.array([np.nan]), np.array([1.0])))
+
+
+@pytest.mark.parametrize("kwargs", [{"across_gate_m": 0}, {"seed_hits": 20}, {"max_angle_deg": 90},
+                                    {"min_burial_m": 5, "max_burial_m": 2}, {"max_gap_pings": -1},
+                                    {"min_score": math.nan}])
+def test_bad_line_options_are_refused_in_one_line(kwargs):
+    with pytest.raises(OptionError) as e:
+        LineOptions(**kwargs)
+    assert "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("burial, error, angle, kind", [
+    (1.0, 0.1, 50.0, "pipeline"), (2.5, 0.2, 30.0, "pipeline"), (0.1, 0.1, 50.0, "seabed"),
+    (-2.0, 0.1, 50.0, "water"), (20.0, 0.1, 50.0, "subbottom"), (20.2, 0.05, 2.0, "subbottom-nadir"),
+    (-1.3, 0.05, 1.0, "seabed-nadir"), (0.0, 0.05, 3.0, "seabed-nadir"), (1.0, 0.05, 3.0, "pipeline"),
+    # unresolved far lines: a pipeline when within three standard errors of 0.5-10 m, else by the estimate
+    (-3.7, 3.3, 76.0, "pipeline"), (4.9, 0.9, 70.0, "pipeline"), (21.1, 1.1, 64.0, "subbottom"),
+    (-6.0, 1.5, 70.0, "water"), (math.nan, math.nan, 40.0, "unknown")])
+def test_line_kind_follows_burial_its_error_and_nadir(burial, error, angle, kind):
+    assert line_kind(burial, error, angle, LineOptions()) == kind
