@@ -8,7 +8,9 @@ per scene and the false-line rate of the clutter-only scene against the
 score threshold, and times the line building of a 1,000-ping survey
 (synthetic detections at the simulated lines' density).
 
-    python bench/lines_eval.py [--work DIR] [--scenes line1,line4,cross,boulders,clutter]
+    python bench/lines_eval.py [--work DIR] [--scenes line1,line4,cross,boulders,clutter,clutter:1,clutter:2]
+
+A scene ``NAME:SEED`` is simulated with that random seed (seabed, clutter, noise).
 """
 
 from __future__ import annotations
@@ -29,19 +31,21 @@ from clbeam.survey import SurveyOptions, run_survey, scan_inputs
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.products import finalize_survey
 
-SCENES = ("line1", "line4", "cross", "boulders", "clutter")
+SCENES = ("line1", "line4", "cross", "boulders", "clutter", "clutter:1", "clutter:2")
 
 
-def survey_scene(name: str, work: Path, lines: LineOptions):
-    """Simulate (once) and survey one scene; its products."""
-    nc = work / f"{name}.nc"
+def survey_scene(spec: str, work: Path, lines: LineOptions):
+    """Simulate (once) and survey one scene (``NAME`` or ``NAME:SEED``); its products."""
+    name, _, seed = spec.partition(":")
+    tag = f"{name}_s{seed}" if seed else name
+    nc = work / f"{tag}.nc"
     if not nc.exists():
-        write_ping_file(simulate(load_scene(name)), nc)
+        write_ping_file(simulate(load_scene(name), seed=int(seed or 0)), nc)
     scan = scan_inputs([nc])
     grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=scan.max_range_m, min_range_m=0.0,
                              angles_deg=(-80.0, 80.0))
     opts = SurveyOptions(grid=grid, imaging=ImagingOptions(seabed_band_m=(5.0, 40.0)), lines=lines)
-    out = work / f"{name}.zarr"
+    out = work / f"{tag}.zarr"
     res = run_survey(scan, out, opts)
     return res, nc, out, opts
 
@@ -62,17 +66,23 @@ def scene_rows(name: str, products, nc: Path) -> list:
     return out
 
 
-def false_rate(out: Path, opts: SurveyOptions, km: float, thresholds=(-2, -1, 0, 1, 2, 3, 5)) -> list:
-    """Lines of kind pipeline (and of any kind) per km against the score threshold, on a clutter-only survey
-    (the lines built once with no threshold, counted by score)."""
-    pr = finalize_survey(out, SurveyOptions(grid=opts.grid, imaging=opts.imaging, lines=LineOptions(min_score=-1e9)))
-    rows = []
+def false_rate(runs: list, thresholds=(-2, -1, 0, 1, 2, 3, 5)) -> list:
+    """Pipeline lines (and lines of any kind) per km against the score threshold over clutter-only surveys
+    (the lines built once with no threshold, counted by score); ``runs``: ``(store, options)``."""
+    rows, km = [], 0.0
+    kept = []
+    for out, opts in runs:
+        pr = finalize_survey(out, SurveyOptions(grid=opts.grid, imaging=opts.imaging,
+                                                lines=LineOptions(min_score=-1e9)))
+        km += pr.track_km
+        kept += pr.lines.rows
+        finalize_survey(out, opts)  # the products with the default threshold again
     for s in thresholds:
-        kept = [r for r in pr.lines.rows if r["score"] >= s]
-        n_pipe = sum(r["kind"] == "pipeline" for r in kept)
-        rows.append(f"| {s:g} | {n_pipe} | {n_pipe / km:.2f} | {len(kept)} |")
-    finalize_survey(out, opts)  # the products with the default threshold again
-    return rows
+        over = [r for r in kept if r["score"] >= s]
+        n_pipe = sum(r["kind"] == "pipeline" for r in over)
+        rows.append(f"| {s:g} | {n_pipe} | {n_pipe / km:.2f} | {len(over)} |")
+    return [f"{len(runs)} clutter-only survey(s), {km:.2f} km", "", "| min score | pipeline lines | per km | "
+            "lines of any kind |", "|---|---|---|---|"] + rows
 
 
 def time_thousand_pings(density_per_m: float = 0.05, n_pings: int = 1000) -> str:
@@ -108,16 +118,16 @@ def main(argv=None) -> None:
     args.work.mkdir(parents=True, exist_ok=True)
     table = ["| scene | pipeline | detectable pings | on its line | fragments | position RMS (m) | burial error (m) "
              "| false pipeline lines |", "|---|---|---|---|---|---|---|---|"]
-    for name in args.scenes.split(","):
+    clutter = []
+    for spec in args.scenes.split(","):
         t0 = time.perf_counter()
-        res, nc, out, opts = survey_scene(name, args.work, LineOptions())
-        table += scene_rows(name, res.products, nc)
-        print(f"{name}: surveyed in {time.perf_counter() - t0:.0f} s, {res.products.n_pipelines} pipeline line(s)")
-        if name == "clutter":
-            km = res.products.track_km
-            print(f"\nclutter only, {km:.2f} km: pipeline lines against the score threshold\n")
-            print("| min score | pipeline lines | per km | lines of any kind |\n|---|---|---|---|")
-            print("\n".join(false_rate(out, opts, km)))
+        res, nc, out, opts = survey_scene(spec, args.work, LineOptions())
+        table += scene_rows(spec, res.products, nc)
+        print(f"{spec}: surveyed in {time.perf_counter() - t0:.0f} s, {res.products.n_pipelines} pipeline line(s)")
+        if spec.startswith("clutter"):
+            clutter.append((out, opts))
+    if clutter:
+        print("\n" + "\n".join(false_rate(clutter)))
     print("\n" + "\n".join(table))
     print("\n" + time_thousand_pings())
 

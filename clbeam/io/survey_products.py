@@ -61,9 +61,9 @@ OBJECT_COLUMNS = ("object", "n_pings", "n_detections", "first_ping", "last_ping"
 """Columns of every object row (the first five are integers)."""
 LINE_COLUMNS = ("line", "kind", "n_pings", "first_ping", "last_ping", "length_m", "heading_deg", "mean_cf", "score",
                 "burial_m", "burial_std_m", "mean_y_m", "mean_z_m", "detected_fraction", "burial_error_m",
-                "burial_resolved")
+                "burial_resolved", "specular")
 """Columns of every line row (``kind`` a string; ``line``, ``n_pings``, the pings and ``burial_resolved`` integers)."""
-LINE_INTEGERS = ("line", "n_pings", "first_ping", "last_ping", "burial_resolved")
+LINE_INTEGERS = ("line", "n_pings", "first_ping", "last_ping", "burial_resolved", "specular")
 LINE_KINDS = ("pipeline", "seabed", "water", "subbottom", "seabed-nadir", "subbottom-nadir", "unknown")
 """Kinds of a line (:func:`clbeam.survey.line_products.line_kind`), in the order of their stored codes."""
 

@@ -136,3 +136,62 @@ def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior
     t = -resid * k * sigma_t ** 2 / (prior_sigma_m ** 2 + (k * sigma_t) ** 2)
     sigma_y = np.abs(np.cos(theta)) * sigma_t * np.sqrt(shrink)
     return y + np.cos(theta) * t, burial, np.abs(k) * sigma_t, burial + k * t, sigma_y
+
+
+def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_burial_m: float = 1.0) -> dict:
+    """Whether a line's echoes are a smooth pipe's specular echo, migrated off the ping's plane.
+
+    A straight pipe crossing the ping's plane at ``y_c`` at an angle ``a``
+    to the track returns its echo from its point nearest the source, at
+    ``x = y_c sin a cos a`` off the plane (offsets from the grid centre);
+    the imager shows it at that range and cone angle, ``y_c cos^2 a``
+    across and ``dz = sqrt(z^2 + x^2) - z`` deeper than the pipe.  Moved
+    along its arc to the pipe's depth (:func:`arc_constrained`) it lands at
+    ``y_c cos a``, so along the line ``dy/ds = sin a``.  A rough pipe's
+    diffuse echo comes from the plane itself: ``y_c``, no extra depth,
+    ``dy/ds = tan a``.  The measured burials ``b_i`` tell them apart: fitted
+    as ``b + k dz_i`` (weights ``1 / sigma^2``), ``k`` near 1 is the
+    specular echo, near 0 the diffuse one.
+
+    Parameters
+    ----------
+    y_m, burial_m, sigma_m : array_like
+        ``(n,)`` the line's detections moved along their arcs (m), their
+        measured burials and those burials' standard deviations (m).
+    slope : array_like
+        ``(n,)`` the line's ``dy/ds`` at each detection's ping.
+    centre_yz_m : array_like
+        ``(n, 2)`` grid centres (m).
+    seabed : array_like
+        ``(n, 2)`` the pings' seabeds ``(z0, slope)``.
+    prior_burial_m : float
+        Burial used for the extra depth (m; its effect is second order).
+
+    Returns
+    -------
+    dict
+        ``k``, ``k_error``, ``burial_m``, ``burial_error_m`` (the fit's
+        intercept and its standard error) and ``y_crossing_m`` (``(n,)``:
+        the offsets moved back to the plane, ``y_c``, as if specular).
+    """
+    y = np.asarray(y_m, dtype=np.float64)
+    c = np.asarray(centre_yz_m, dtype=np.float64).reshape(-1, 2)
+    sb = np.asarray(seabed, dtype=np.float64).reshape(-1, 2)
+    sin_a = np.clip(np.asarray(slope, dtype=np.float64), -0.95, 0.95)
+    cos_a = np.sqrt(1 - sin_a ** 2)
+    yc = (y - c[:, 0]) / cos_a + c[:, 0]
+    x_off = (yc - c[:, 0]) * sin_a * cos_a
+    z = sb[:, 0] + sb[:, 1] * yc + prior_burial_m - c[:, 1]
+    dz = np.sqrt(z ** 2 + x_off ** 2) - z
+    out = {"k": np.nan, "k_error": np.nan, "burial_m": np.nan, "burial_error_m": np.nan, "y_crossing_m": yc}
+    b = np.asarray(burial_m, dtype=np.float64)
+    ok = np.isfinite(b) & np.isfinite(sigma_m)
+    if ok.sum() < 3 or np.ptp(dz[ok]) <= 0:
+        return out
+    w = 1 / np.maximum(np.asarray(sigma_m, dtype=np.float64)[ok], 0.3) ** 2
+    a = np.stack([np.ones(ok.sum()), dz[ok]], axis=1)
+    cov = np.linalg.pinv((a * w[:, None]).T @ a)
+    coef = cov @ (a * w[:, None]).T @ b[ok]
+    out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(np.sqrt(cov[0, 0])),
+               k_error=float(np.sqrt(cov[1, 1])))
+    return out

@@ -45,6 +45,10 @@ class LineOptions:
     nadir_angle_deg : float
         Lines within this angle of nadir on their mean are nadir echoes
         (kinds ``seabed-nadir``, ``subbottom-nadir``).
+    beam_width_deg : float
+        Along-track width of the transmit beam (degree; the SBP29's 3.5 m
+        column at the 2-9 kHz band's centre: about 4.5): a line crossing the
+        track is seen over that stretch, smeared across each ping.
     """
 
     across_gate_m: float = 1.5
@@ -61,6 +65,7 @@ class LineOptions:
     max_burial_m: float = 10.0
     burial_resolution_m: float = 0.5
     nadir_angle_deg: float = 10.0
+    beam_width_deg: float = 4.5
 
     def __post_init__(self):
         for name in ("across_gate_m", "burial_gate_m", "fit_length_m", "max_burial_m", "burial_resolution_m"):
@@ -79,5 +84,7 @@ class LineOptions:
         require(0 <= self.min_burial_m < self.max_burial_m, OptionError,
                 f"line burial range must satisfy 0 <= min < max, got {self.min_burial_m!r}-{self.max_burial_m!r}")
         require(math.isfinite(self.min_score), OptionError, f"line min score must be finite, got {self.min_score!r}")
+        require(0 <= self.beam_width_deg < 90, OptionError,
+                f"line beam width must be within 0-90 degrees, got {self.beam_width_deg!r}")
         require(0 <= self.nadir_angle_deg < 90, OptionError,
                 f"line nadir angle must be within 0-90 degrees, got {self.nadir_angle_deg!r}")

@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LINE_KINDS re-exported)
-from clbeam.survey.burial import arc_constrained
+from clbeam.survey.burial import arc_constrained, specular_fit
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import SearchSize, clutter_density, line_score
-from clbeam.survey.lines import Track, TrackFrame, find_tracks, line_burial, smooth_path
+from clbeam.survey.lines import Track, TrackFrame, across_gate, find_tracks, line_burial, smooth_path
 
 log = logging.getLogger(__name__)
 
@@ -190,10 +190,11 @@ def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np
         ya[m], b[m], sd[m], bpost[m], sy[m] = arc_constrained(y[m], z[m], centre_yz[g], tuple(sb[g]))
     ya[~known] = y[~known]
     sy[~known] = 0.0
+    r = np.hypot(y - centre_yz[p, 0], z - centre_yz[p, 1])
     s_ping = track_distance_m(nav, pings)[0]
     s = s_ping[np.searchsorted(pings, p)]
     return TrackFrame(ping=p, s=s, y=ya, b=b, cf=det.cf[order], b_sigma=sd, b_post=bpost,
-                      pings=pings, ping_s=s_ping, y_sigma=sy)
+                      pings=pings, ping_s=s_ping, y_sigma=sy, r=r)
 
 
 def _search_size(frame: TrackFrame) -> SearchSize:
@@ -211,8 +212,11 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSi
     path_y = smooth_path(frame, tr, options.fit_length_m / 2)
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
-    resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
     gate_y, gate_b = effective_gates(frame, tr, path_y, options)
+    spec = _specular(frame, tr, path_y, sb, centre_yz)
+    if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
+        path_y, burial, burial_se = spec["path_y"], spec["burial_m"], spec["burial_error_m"]
+    resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
     others = np.setdiff1d(np.arange(int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])), m)
     line_y_at = path_y[np.searchsorted(ext, frame.ping[others])]
     density = clutter_density(frame.y[others], frame.b[others], line_y_at, burial if math.isfinite(burial)
@@ -226,22 +230,48 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSi
            "mean_cf": float(np.mean(frame.cf[m])), "score": float(score),
            "burial_m": burial, "burial_std_m": spread, "burial_error_m": burial_se, "burial_resolved": int(resolved),
            "mean_y_m": float(np.mean(path_y)), "mean_z_m": float(np.nanmean(z_line)),
-           "detected_fraction": float(m.size / ext.size)}
+           "detected_fraction": float(m.size / ext.size), "specular": int(spec is not None)}
     return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
 
+def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray) -> dict | None:
+    """The line as a smooth pipe's specular echo (:func:`clbeam.survey.burial.specular_fit`) when its burials
+    say so (``k`` within two standard errors of 1 and more than two from 0), else ``None``."""
+    m = tr.members
+    ext = frame.pings[tr.first:tr.last + 1]
+    s_ext = frame.ping_s[tr.first:tr.last + 1]
+    if ext.size < 3 or np.ptp(s_ext) <= 0:
+        return None
+    slope = np.gradient(path_y, s_ext)
+    k = np.searchsorted(ext, frame.ping[m])
+    g = frame.ping[m]
+    fit = specular_fit(frame.y[m], frame.b[m], frame.b_sigma[m], slope[k], centre_yz[g], sb[g])
+    if not (math.isfinite(fit["k"]) and abs(fit["k"] - 1) <= 2 * fit["k_error"] and fit["k"] > 2 * fit["k_error"]):
+        return None
+    sin_a = np.clip(slope, -0.95, 0.95)
+    y_c = (path_y - centre_yz[ext, 0]) / np.sqrt(1 - sin_a ** 2) + centre_yz[ext, 0]
+    return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
+
+
 def effective_gates(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> tuple[float, float]:
-    """The half-widths (m) across and in burial the track's detections were gated with, on average: the gates
-    widen with the line's heading and with each peak's slide along its arc (:mod:`clbeam.survey.lines`), and the
-    score's chance of a clutter hit must use what was used."""
+    """The half-widths (m) across and in burial that a chance line must match, for the score.
+
+    The gates the track's detections were taken with, on average (they
+    widen with the line's heading, each peak's slide along its arc and a
+    crossing line's smear: :mod:`clbeam.survey.lines`), narrowed to 2.5
+    times the RMS distance of the detections from the line's path where
+    they lie closer than that (a line tighter than its gate is less likely
+    by chance), never below ``across_gate_m``.
+    """
     m = tr.members
     s_ext = frame.ping_s[tr.first:tr.last + 1]
     slope = np.gradient(path_y, s_ext) if path_y.size > 1 and np.ptp(s_ext) > 0 else np.zeros(path_y.size)
     k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
-    gy = np.maximum(options.across_gate_m * np.minimum(np.hypot(1.0, slope[k]), 2.0), 2 * frame.y_sigma[m])
+    gy = float(np.mean(across_gate(frame, m, slope[k], options)))
+    fit = 2.5 * float(np.sqrt(np.mean((frame.y[m] - path_y[k]) ** 2)))
     sig = frame.b_sigma[m]
     gb = np.maximum(options.burial_gate_m, 2 * np.where(np.isfinite(sig), sig, 0.0))
-    return float(np.mean(gy)), float(np.mean(gb))
+    return min(gy, max(options.across_gate_m, fit)), float(np.mean(gb))
 
 
 def _world_path(row: dict, pings: np.ndarray, y: np.ndarray, s: np.ndarray, nav: SurveyNavigation,

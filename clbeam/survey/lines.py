@@ -67,6 +67,10 @@ class TrackFrame:
     y_sigma : numpy.ndarray or None
         ``(n,)`` standard deviation of each offset (m): the cross-track gate
         widens to twice it.
+    r : numpy.ndarray or None
+        ``(n,)`` slant range of each detection from its grid centre (m): a
+        line crossing the track at a heading ``a`` smears over
+        ``r beam tan(a)`` across in each ping (:func:`across_gate`).
     pings : numpy.ndarray
         ``(k,)`` every imaged survey ping, sorted (those without detections too).
     ping_s : numpy.ndarray
@@ -83,11 +87,14 @@ class TrackFrame:
     pings: np.ndarray
     ping_s: np.ndarray
     y_sigma: np.ndarray | None = None
+    r: np.ndarray | None = None
     starts: np.ndarray = field(init=False)
 
     def __post_init__(self):
         if self.y_sigma is None:
             self.y_sigma = np.zeros(self.y.size)
+        if self.r is None:
+            self.r = np.zeros(self.y.size)
         pos = np.searchsorted(self.ping, self.pings)
         self.starts = np.r_[pos, self.ping.size]
 
@@ -220,17 +227,16 @@ def _follow(frame: TrackFrame, seed: np.ndarray, used: np.ndarray, options: Line
 
 def _prune(frame: TrackFrame, members: np.ndarray, options: LineOptions) -> np.ndarray:
     """The members that lie within the gates of the whole track: burial within the gate of the track's, offset
-    within the gate of its smoothed path (a seed's detections join before any gate is applied)."""
+    within the gate of its smoothed path without them (a seed's detections join before any gate is applied)."""
     for _ in range(2):
         if members.size < 3:
             return members
         b_hat = burial_estimate(frame.b[members], frame.b_sigma[members])
         ok = _burial_ok(frame.b[members], frame.b_sigma[members], b_hat, options)
-        k = np.searchsorted(frame.pings, frame.ping[members])
-        track = Track(members=members, first=int(k[0]), last=int(k[-1]))
-        path = smooth_path(frame, track, options.fit_length_m / 2)[k - track.first]
-        slope = np.gradient(path, frame.s[members]) if members.size > 1 and np.ptp(frame.s[members]) > 0 else 0.0
-        gate = np.maximum(options.across_gate_m * np.minimum(np.hypot(1.0, slope), 2.0), 2 * frame.y_sigma[members])
+        s_m = frame.s[members]
+        path = local_linear(s_m, frame.y[members], s_m, options.fit_length_m / 2, leave_out=True)
+        slope = np.gradient(path, s_m) if np.ptp(s_m) > 0 else 0.0
+        gate = across_gate(frame, members, slope, options)
         ok &= np.abs(frame.y[members] - path) <= gate
         if ok.all():
             break
@@ -269,17 +275,34 @@ def _extend(frame: TrackFrame, hits: dict, used: np.ndarray, options: LineOption
         cand = np.arange(sl.start, sl.stop)
         cand = cand[~used[cand]]
         dy = np.abs(frame.y[cand] - y_hat)
-        # the gate is across the line: a line at heading a sweeps y 1/cos(a) faster (at most twice the gate)
-        gate = np.maximum(options.across_gate_m * min(math.hypot(1.0, slope), 2.0), 2 * frame.y_sigma[cand])
-        ok = (dy <= gate) & _burial_ok(frame.b[cand], frame.b_sigma[cand], b_hat, options)
+        ok = (dy <= across_gate(frame, cand, slope, options)) & _burial_ok(frame.b[cand], frame.b_sigma[cand], b_hat,
+                                                                            options)
         if ok.any():
-            hits[k] = int(cand[ok][np.argmin(dy[ok])])
+            # of several (a steep line's echo smears across the gate) the one nearest their CF-weighted centre
+            inside = cand[ok]
+            centre = float(np.average(frame.y[inside], weights=frame.cf[inside]))
+            hits[k] = int(inside[np.argmin(np.abs(frame.y[inside] - centre))])
             recent = [hits[k]] + recent[:options.fit_hits - 1]
             fit = _local_fit(frame, np.asarray(recent), options)
             misses = 0
         else:
             misses += 1
     return hits
+
+
+def across_gate(frame: TrackFrame, idx: np.ndarray, slope, options: LineOptions) -> np.ndarray:
+    """Half-width (m) of the gate across the track for detections ``idx`` of a line of slope ``dy/ds``.
+
+    The gate is across the line: a line at heading ``a`` sweeps ``y``
+    ``1/cos(a)`` faster (at most twice the gate); at least twice the
+    detection's offset uncertainty; and at least half the smear of a line
+    crossing the track, whose echo comes from the stretch of it inside the
+    transmit beam: ``r beam |tan a|`` across at slant range ``r``.
+    """
+    slope = np.abs(np.asarray(slope, dtype=np.float64))
+    base = options.across_gate_m * np.minimum(np.hypot(1.0, slope), 2.0)
+    smear = 0.5 * math.radians(options.beam_width_deg) * frame.r[idx] * slope
+    return np.maximum(np.maximum(base, 2 * frame.y_sigma[idx]), smear)
 
 
 def _burial_ok(b: np.ndarray, sigma: np.ndarray, b_hat: float, options: LineOptions) -> np.ndarray:
@@ -364,14 +387,25 @@ def smooth_path(frame: TrackFrame, track: Track, half_width_m: float) -> np.ndar
         ``(last - first + 1,)`` cross-track offsets (m) at ``frame.pings[first:last + 1]``.
     """
     s, y = frame.s[track.members], frame.y[track.members]
-    at = frame.ping_s[track.first:track.last + 1]
+    return local_linear(s, y, frame.ping_s[track.first:track.last + 1], half_width_m)
+
+
+def local_linear(s: np.ndarray, y: np.ndarray, at: np.ndarray, half_width_m: float, *,
+                 leave_out: bool = False) -> np.ndarray:
+    """Local straight-line fit of ``y(s)`` evaluated at ``at`` (tricube weights of half-width ``half_width_m``;
+    at least the three nearest points weigh in).  ``leave_out``: ``at`` is ``s`` and each point's own weight is
+    0 (its leave-one-out prediction, for outliers at the ends of a track)."""
     d = (s[None, :] - at[:, None]) / max(half_width_m, 1e-9)
     w = np.clip(1 - np.abs(d) ** 3, 0, None) ** 3
-    # at least the three nearest hits weigh in, whatever the gap
-    nearest = np.argsort(np.abs(d), axis=1)[:, :3]
+    far = np.abs(d)
+    if leave_out:
+        np.fill_diagonal(far, np.inf)
+    nearest = np.argsort(far, axis=1)[:, :3]
     np.put_along_axis(w, nearest, np.maximum(np.take_along_axis(w, nearest, axis=1), 1e-3), axis=1)
+    if leave_out:
+        np.fill_diagonal(w, 0.0)
     sw, sd, sy = w.sum(1), (w * d).sum(1), (w * y).sum(1)
     sdd, sdy = (w * d * d).sum(1), (w * d * y).sum(1)
     det = sw * sdd - sd ** 2
     flat = det <= 1e-12 * np.maximum(sw ** 2, 1e-30)
-    return np.where(flat, sy / sw, (sdd * sy - sd * sdy) / np.where(flat, 1.0, det))
+    return np.where(flat, sy / np.maximum(sw, 1e-30), (sdd * sy - sd * sdy) / np.where(flat, 1.0, det))
