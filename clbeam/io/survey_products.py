@@ -239,18 +239,24 @@ def write_feature_tables(output: Path, paths: tuple, group: str, rows: list, col
     else:
         with contextlib.suppress(FileNotFoundError):
             geojson_path.unlink()
-    integer = set(integers)
-    dim = group[:-1]  # objects -> object, lines -> line
+    data = _feature_variables(group[:-1], rows, columns, set(integers), categories or {})  # objects -> object
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        xr.Dataset(data).to_zarr(output, group=group, mode="w", consolidated=False)
+
+
+def _feature_variables(dim: str, rows: list, columns: list, integer: set, categories: dict) -> dict:
+    """The Zarr variables of a feature table: integers, floats, and categories as small integers with CF flags
+    (Zarr v3 has no stable string type)."""
+    import xarray as xr
+
     data = {}
     for c in columns:
         vals = [r[c] for r in rows]
-        if c in (categories or {}) or (vals and isinstance(vals[0], str)):
-            # a category as a small integer with CF flag attributes (Zarr v3 has no stable string type)
-            names = list((categories or {}).get(c) or sorted(set(vals)))
+        if c in categories or (vals and isinstance(vals[0], str)):
+            names = list(categories.get(c) or sorted(set(vals)))
             data[c] = xr.Variable((dim,), np.array([names.index(v) for v in vals], dtype=np.int8),
                                   {"flag_values": list(range(len(names))), "flag_meanings": " ".join(names)})
         else:
             data[c] = ((dim,), np.array(vals, dtype=np.int64 if c in integer else np.float64))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        xr.Dataset(data).to_zarr(output, group=group, mode="w", consolidated=False)
+    return data

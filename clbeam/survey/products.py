@@ -177,12 +177,7 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     row_labels["line"][det.row] = lines.labels
     files = product_paths(output)
     _write_peaks(output, names, files, options, nav, row_labels)
-    rows, columns, paths = object_rows(det.objects, nav, det.ping, det.labels, det.cols)
-    write_feature_tables(output, (files["objects_csv"], files["objects_geojson"]), "objects", rows, columns,
-                         OBJECT_COLUMNS[:5], paths, "clbeam associated objects")
-    rows, columns, paths = line_rows(lines, nav)
-    write_feature_tables(output, (files["lines_csv"], files["lines_geojson"]), "lines", rows, columns,
-                         LINE_INTEGERS, paths, "clbeam lines", categories={"kind": LINE_KINDS})
+    _write_features(output, files, det, lines, nav)
     n_imaged = int(first.per_ping["imaged"].sum())
     update_store(output, {"latitude": nav.lat, "longitude": nav.lon, "heading": nav.heading, "time": nav.time_s,
                           **first.per_ping}, _store_attrs(first, options, failures))
@@ -207,6 +202,16 @@ def track_length_km(nav: SurveyNavigation, imaged: np.ndarray) -> float:
         return 0.0 if pings.size else math.nan
     s, known = track_distance_m(nav, pings)
     return float(s[-1] - s[0]) / 1000 if known else math.nan
+
+
+def _write_features(output: Path, files: dict, det: _Detections, lines: SurveyLines, nav: SurveyNavigation) -> None:
+    """The object and line tables."""
+    rows, columns, paths = object_rows(det.objects, nav, det.ping, det.labels, det.cols)
+    write_feature_tables(output, (files["objects_csv"], files["objects_geojson"]), "objects", rows, columns,
+                         OBJECT_COLUMNS[:5], paths, "clbeam associated objects")
+    rows, columns, paths = line_rows(lines, nav)
+    write_feature_tables(output, (files["lines_csv"], files["lines_geojson"]), "lines", rows, columns,
+                         LINE_INTEGERS, paths, "clbeam lines", categories={"kind": LINE_KINDS})
 
 
 def _nan(v) -> float:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-from survey_common import GRID, N_PINGS, PER_FILE, RUN_CLI, TINY, survey_main
+from survey_common import GRID, LINES, N_PINGS, PER_FILE, RUN_CLI, TINY, survey_main
 
 from clbeam import survey
 from clbeam.constants import KNOT_M_S
@@ -165,7 +165,7 @@ def _row_key(row: dict) -> tuple:
 def test_survey_killed_twice_with_sigkill_resumes_to_the_uninterrupted_result(line, reference, tmp_path):
     _, paths = line
     out = tmp_path / "killed.zarr"
-    argv = ["survey", *map(str, paths), "-o", str(out), *GRID, "--images", "-q"]
+    argv = ["survey", *map(str, paths), "-o", str(out), *GRID, *LINES, "--images", "-q"]
     at_kill = []
     # the first kill right after a commit, the second partway through a ping (about 0.25 s each)
     for target, delay_s in ((2, 0.0), (6, 0.13)):
@@ -220,7 +220,8 @@ def _survey_options():
 
     grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=0.25, min_range_m=200, max_range_m=380,
                              angles_deg=(-60, 60))
-    return survey.SurveyOptions(grid=grid, imaging=ImagingOptions(), images=True)
+    return survey.SurveyOptions(grid=grid, imaging=ImagingOptions(), images=True,
+                                lines=survey.LineOptions(min_score=float(LINES[1])))
 
 
 def test_products_streamed_in_small_blocks_equal_the_products_in_one_block(reference, tmp_path, monkeypatch):
@@ -240,7 +241,7 @@ def test_dask_local_cluster_of_two_worker_processes_equals_the_single_process_ru
     on a real cluster, and nothing but the task description is pickled."""
     _, paths = line
     out = tmp_path / "dask.zarr"
-    rc = survey_main(["survey", *map(str, paths), "-o", str(out), *GRID, "--images", "--workers", "2",
+    rc = survey_main(["survey", *map(str, paths), "-o", str(out), *GRID, *LINES, "--images", "--workers", "2",
                       "--block-pings", "3", "-q"])
     assert rc == 0
     assert_same_survey(out, reference)
@@ -253,7 +254,7 @@ def test_dask_scheduler_address_with_two_thread_workers_equals_the_single_proces
     _, paths = line
     out = tmp_path / "sched.zarr"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
-        rc = survey_main(["survey", *map(str, paths), "-o", str(out), *GRID, "--images",
+        rc = survey_main(["survey", *map(str, paths), "-o", str(out), *GRID, *LINES, "--images",
                           "--scheduler", cluster.scheduler_address, "--block-pings", "2", "-q"])
     assert rc == 0
     assert_same_survey(out, reference)

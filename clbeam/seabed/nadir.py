@@ -1,0 +1,236 @@
+"""The seabed's normal-incidence reflection coefficient from its nadir echo and the first surface multiple.
+
+The vertical beam (:class:`clbeam.imaging.vertical_beam.VerticalBeam`, earth
+referenced: heave and roll compensated) of a ping over a flat seabed holds
+the seabed echo at two-way time ``t1`` and its first surface multiple
+(seabed, sea surface, seabed) at ``t2 = 2 t1 + 2 d / c`` for transducers
+``d`` below the surface.  Both travel the same water, so with image-source
+spreading (amplitude ``1 / L``, ``L = c t`` the unfolded path)
+
+    A1 = K R / L1,        A2 = K R Rs R / L2,
+
+``K`` the unknown source level and gains, ``Rs`` the sea surface's
+reflection coefficient (``-1``, less its roughness loss), and so
+
+    |R| = (A2 / A1) (t2 / t1) exp(alpha c (t2 - t1) / 2) / |Rs|
+
+without knowing ``K`` (``alpha`` the water's absorption, in nepers per
+metre).  Each amplitude is measured as the square root of the trace's
+energy in a window about its peak, less the noise energy of a window of
+the water column (:func:`echo_energy`), not from one sample: a rough
+seabed spreads its echo in time.
+
+Limits: a seabed sloping by ``s`` sends the seabed echo back from ``s``
+off the vertical and the multiple from about ``2 s``; on the vertical beam
+alone the array's beam pattern weighs them unequally (15 % low at 0.8
+degree for the SBP29), so :class:`NadirMeter` measures each on the beam that
+points at it (slopes up to about 3 degrees).  The seabed must be smooth
+over the multiple's first Fresnel zone (``sqrt(lambda L2) / 2``, about 8 m
+at 5.5 kHz and 230 m of water); a rough seabed scatters part of each echo
+out of the specular direction, more of the multiple's (two bounces): R
+then reads low by the roughness loss, as the forward model's Eckart factor
+says.  The multiple must lie inside the record (else the reason says so
+and the coefficient is NaN).  See docs/avo.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from clbeam.errors import OptionError, require
+
+#: the first strong return: the first sample within this of the trace's maximum (dB)
+PRIMARY_BELOW_MAX_DB = 20.0
+
+
+@dataclass(frozen=True)
+class NadirEchoes:
+    """The nadir echo and its multiple in one trace.
+
+    Attributes
+    ----------
+    primary_s, multiple_s : float
+        Two-way times of their peaks (s; NaN: not found).
+    primary_amplitude, multiple_amplitude : float
+        ``sqrt(energy)`` of each echo over its window, noise removed (trace units, times sqrt(s)).
+    reflection : float
+        ``|R|`` of the seabed at normal incidence (NaN without a multiple).
+    reason : str
+        Why ``reflection`` is NaN ("" when it is not).
+    """
+
+    primary_s: float
+    multiple_s: float
+    primary_amplitude: float
+    multiple_amplitude: float
+    reflection: float
+    reason: str = ""
+
+
+def echo_energy(envelope: np.ndarray, times_s: np.ndarray, t_s: float, half_window_s: float,
+                noise_power: float) -> float:
+    """Energy of the trace about ``t_s`` (``sum |s|^2 dt`` over ``t_s +- half_window_s``) less the noise's."""
+    dt = float(times_s[1] - times_s[0])
+    m = np.abs(times_s - t_s) <= half_window_s
+    return max(float(np.sum(envelope[m] ** 2) * dt - noise_power * m.sum() * dt), 0.0)
+
+
+def _peak_after(envelope: np.ndarray, times_s: np.ndarray, start_s: float, stop_s: float, level: float,
+                span_s: float) -> float:
+    """Time (s) of an echo's peak: the largest sample within ``span_s`` after the first one above ``level`` in
+    ``start_s..stop_s`` (a compressed pulse's leading sidelobes cross the level first), refined by a parabola."""
+    m = np.flatnonzero((times_s >= start_s) & (times_s <= stop_s))
+    if m.size < 3:
+        return math.nan
+    above = np.flatnonzero(envelope[m] >= level)
+    if not above.size:
+        return math.nan
+    t_first = times_s[m[above[0]]]
+    win = np.flatnonzero((times_s >= t_first) & (times_s <= t_first + span_s))
+    k = int(win[np.argmax(envelope[win])])
+    frac = 0.0
+    if 0 < k < envelope.size - 1:
+        a, b, c = envelope[k - 1], envelope[k], envelope[k + 1]
+        den = a - 2 * b + c
+        frac = 0.5 * (a - c) / den if den != 0 else 0.0
+    return float(times_s[k] + frac * (times_s[1] - times_s[0]))
+
+
+def nadir_echoes(trace: np.ndarray, times_s: np.ndarray, *, sound_speed_m_s: float, bandwidth_hz: float,
+                 half_window_s: float | None = None, transducer_depth_m: float | None = None,
+                 max_transducer_depth_m: float = 30.0, absorption_db_per_km: float = 0.0,
+                 surface_loss_db: float = 0.0) -> NadirEchoes:
+    """The seabed echo, its first surface multiple and the reflection coefficient they give (module docstring).
+
+    Parameters
+    ----------
+    trace : numpy.ndarray
+        ``(n,)`` vertical-beam trace: the pulse-compressed analytic signal
+        (:attr:`BeamTrace.analytic`) or its envelope.
+    times_s : numpy.ndarray
+        ``(n,)`` two-way times of its samples (s), evenly spaced.
+    sound_speed_m_s : float
+        Water sound speed (m/s).
+    bandwidth_hz : float
+        Pulse bandwidth (Hz): the default window is ``+- 4 / bandwidth``.
+    half_window_s : float, optional
+        Half-width of the energy windows (s).
+    transducer_depth_m : float, optional
+        Depth of the transducers below the sea surface (m): the multiple
+        is sought at ``2 t1 + 2 d / c``; without it, the first echo after
+        ``2 t1`` within ``max_transducer_depth_m``.
+    absorption_db_per_km : float
+        Water absorption at the band's centre (dB/km).
+    surface_loss_db : float
+        Loss of the sea-surface reflection (dB; 0: a flat surface, ``|Rs| = 1``).
+
+    Returns
+    -------
+    NadirEchoes
+    """
+    env = np.abs(np.asarray(trace))
+    t = np.asarray(times_s, dtype=np.float64)
+    require(env.ndim == 1 and env.size == t.size and env.size >= 8, OptionError,
+            f"nadir echoes need a trace and its times of one length >= 8, got {env.shape} and {t.shape}")
+    require(sound_speed_m_s > 0 and bandwidth_hz > 0, OptionError,
+            "nadir echoes need a positive sound speed and bandwidth")
+    w = half_window_s if half_window_s is not None else 4.0 / bandwidth_hz
+    top = float(np.max(env)) if env.size else 0.0
+    if not top > 0:
+        return NadirEchoes(math.nan, math.nan, math.nan, math.nan, math.nan, "empty trace")
+    t1 = _peak_after(env, t, t[0], t[-1], top * 10 ** (-PRIMARY_BELOW_MAX_DB / 20), 2 * w)
+    # noise: the water column before the primary, clear of its window
+    quiet = (t < t1 - 3 * w) & (t > t[0])
+    noise = float(np.median(env[quiet] ** 2)) if quiet.sum() > 8 else 0.0
+    e1 = echo_energy(env, t, t1, w, noise)
+    if transducer_depth_m is not None:
+        lo = hi = 2 * t1 + 2 * transducer_depth_m / sound_speed_m_s
+        lo, hi = lo - 2 * w, hi + 2 * w
+    else:
+        lo, hi = 2 * t1 - 2 * w, 2 * t1 + 2 * max_transducer_depth_m / sound_speed_m_s + 2 * w
+    if hi + w > t[-1]:
+        return NadirEchoes(t1, math.nan, math.sqrt(e1), math.nan, math.nan,
+                           f"the multiple (expected near {2 * t1 * 1e3:.1f} ms) lies beyond the record's end "
+                           f"({t[-1] * 1e3:.1f} ms)")
+    window = (t >= lo) & (t <= hi)
+    floor = math.sqrt(noise) if noise > 0 else 0.0
+    level = max(0.5 * float(np.max(env[window])), 4 * floor)
+    t2 = _peak_after(env, t, lo, hi, level, 2 * w)
+    e2 = echo_energy(env, t, t2, w, noise) if math.isfinite(t2) else math.nan
+    if not (math.isfinite(t2) and e2 > 0 and e1 > 0):
+        return NadirEchoes(t1, t2, math.sqrt(e1), math.nan, math.nan, "no multiple above the noise")
+    alpha_np_m = absorption_db_per_km / 1000 / (20 / math.log(10))
+    r = math.sqrt(e2 / e1) * (t2 / t1) * math.exp(alpha_np_m * sound_speed_m_s * (t2 - t1) / 2) \
+        / 10 ** (-surface_loss_db / 20)
+    return NadirEchoes(t1, t2, math.sqrt(e1), math.sqrt(e2), r)
+
+
+class NadirMeter:
+    """Measures the nadir reflection coefficient of pings, each echo on the beam that points at it.
+
+    The vertical beam (0 degree) finds the seabed echo and its multiple;
+    each is then measured on a fan of beams about nadir (``+- fan_deg``)
+    and taken on the beam of most energy: over a seabed sloping by ``s``
+    the seabed echo arrives from ``s`` off the vertical and the multiple
+    from about ``2 s``, and the array's beam (``+-2`` degrees at the band's
+    centre for the SBP29) would weigh them unequally on the vertical beam
+    alone (15 % low at 0.8 degree).  Slopes up to about ``fan_deg / 2``.
+
+    Parameters
+    ----------
+    imager_factory : callable
+        ``grid -> Imager`` (sharing one engine), for the fans.
+    vertical : VerticalBeam
+        The vertical beam of the file.
+    fan_deg, fan_step_deg : float
+        Half-width and step of the fan (degree).
+    """
+
+    def __init__(self, imager_factory, vertical, *, fan_deg: float = 6.0, fan_step_deg: float = 0.2):
+        self.imager_factory = imager_factory
+        self.vertical = vertical
+        self.angles = np.arange(-fan_deg, fan_deg + fan_step_deg / 2, fan_step_deg)
+
+    def __call__(self, ping, *, bandwidth_hz: float, **kwargs) -> NadirEchoes:
+        """:func:`nadir_echoes` of ``ping`` with each echo's amplitude from its own beam."""
+        from clbeam.model.grid import PolarGrid
+
+        c = float(ping.sound_speed_m_s)
+        t = self.vertical.axis.times_s
+        first = nadir_echoes(self.vertical(ping).analytic, t, sound_speed_m_s=c, bandwidth_hz=bandwidth_hz, **kwargs)
+        if not math.isfinite(first.reflection):
+            return first
+        w = kwargs.get("half_window_s") or 4.0 / bandwidth_hz
+        step = c * float(t[1] - t[0]) / 2
+        r1, r2 = c * first.primary_s / 2, c * first.multiple_s / 2
+        amps = []
+        for r in (r1, r2):
+            ranges = np.arange(r - c * w, r + c * w + step / 2, step)
+            img = self.imager_factory(PolarGrid(ranges, self.angles)).image(ping)
+            s, m = np.asarray(img.sums.s), np.asarray(img.sums.m)
+            power = np.where(m > 0, np.abs(s) ** 2 / np.maximum(m, 1) ** 2, 0.0)
+            energy = power.sum(axis=1) * 2 * step / c
+            amps.append((math.sqrt(float(energy.max())), float(self.angles[np.argmax(energy)])))
+        (a1, th1), (a2, th2) = amps
+        scale = first.reflection / (first.multiple_amplitude / first.primary_amplitude)
+        return NadirEchoes(first.primary_s, first.multiple_s, a1, a2, a2 / a1 * scale,
+                           f"beams {th1:+.1f} and {th2:+.1f} degrees")
+
+
+def patch_reflection(values) -> tuple[float, float, int]:
+    """A patch's nadir reflection coefficient from its pings': ``(median, standard error, pings)``.
+
+    The median keeps a ping whose multiple met a passing target or a
+    noise burst from moving the patch; the standard error is the pings'
+    spread (``1.2533 x std / sqrt(n)``, the median's for Gaussian spread).
+    NaN values (no multiple) are left out; all NaN gives ``(nan, nan, 0)``.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return math.nan, math.nan, 0
+    se = 1.2533 * float(np.std(v, ddof=1)) / math.sqrt(v.size) if v.size > 1 else math.nan
+    return float(np.median(v)), se, int(v.size)
