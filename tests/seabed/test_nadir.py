@@ -23,7 +23,7 @@ from clbeam.errors import OptionError
 from clbeam.imaging.imager import Imager, ImagingOptions
 from clbeam.imaging.vertical_beam import TraceAxis, VerticalBeam
 from clbeam.io.pingfile import pings_from_dataset
-from clbeam.seabed.nadir import NadirMeter, nadir_echoes, patch_reflection
+from clbeam.seabed.nadir import NadirMeter, coherent_reflection, nadir_echoes, patch_reflection
 from clbeam.sim import simulate
 from clbeam.sim.catalog import scene_from_mapping
 
@@ -105,3 +105,39 @@ def test_bad_traces_are_refused_in_one_line():
     assert "\n" not in str(e.value)
     empty = nadir_echoes(np.zeros(100), np.arange(100) * 1e-4, sound_speed_m_s=1500.0, bandwidth_hz=BAND_HZ)
     assert math.isnan(empty.reflection) and empty.reason == "empty trace"
+
+
+def _pulse(t, t0, bandwidth=BAND_HZ, fc=5500.0):
+    """A compressed pulse: Gaussian envelope of width 1/bandwidth on the carrier, analytic."""
+    return np.exp(-0.5 * ((t - t0) * bandwidth) ** 2 * 4) * np.exp(2j * np.pi * fc * (t - t0))
+
+
+def test_coherent_patch_mean_recovers_r_where_scattering_fills_each_pings_windows():
+    """Twenty pings: a specular primary R/L1 and multiple -R^2/L2 (heave left over from its compensation
+    moving them by d and 2d, up to 20 microseconds), the
+    primary buried in scattered echoes of random phase carrying three times its specular energy (a
+    rough sand near normal incidence, as scene avo2's), the multiple in a tenth as much (as the
+    simulation shows: its phase stays put from ping to ping).  Ping by ping the energies read R far
+    low; the coherent mean of the patch gives R within three of its (jackknife) standard errors, and
+    those under 15 %."""
+    rng = np.random.default_rng(3)
+    dt, c = 25e-6, 1500.0
+    t = np.arange(0.2, 0.7, dt)
+    r, t1, t2 = 0.1, 0.3, 0.6066
+    traces, p1, p2 = [], [], []
+    for _ in range(20):
+        heave = rng.normal(0, 1e-5)
+        tr = r / (c * t1) * _pulse(t, t1 + heave) - r * r / (c * t2) * _pulse(t, t2 + 2 * heave)
+        for t0, shift, level in ((t1, heave, r / (c * t1) * math.sqrt(3.0)), (t2, 2 * heave, r * r / (c * t2) * 0.3)):
+            n = 60
+            delays = t0 + shift + np.abs(rng.normal(0, 4e-4, n))
+            amps = level * math.sqrt(1.0 / n) * np.exp(2j * np.pi * rng.random(n))
+            tr = tr + sum(a * _pulse(t, d) for a, d in zip(amps, delays))
+        e = nadir_echoes(tr, t, sound_speed_m_s=c, bandwidth_hz=BAND_HZ)
+        traces.append(tr)
+        p1.append(e.primary_s)
+        p2.append(e.multiple_s)
+    single = [nadir_echoes(x, t, sound_speed_m_s=c, bandwidth_hz=BAND_HZ).reflection for x in traces]
+    assert np.median(single) < 0.75 * r
+    est, se = coherent_reflection(traces, t, p1, p2, bandwidth_hz=BAND_HZ)
+    assert abs(est - r) <= 3 * se and se < 0.15 * r
