@@ -42,7 +42,7 @@ def plot_persistence(path, det_ping, det_y, det_cf, threshold: float) -> Path:
 
 #: colour of each line kind on the map
 KIND_COLOURS = {"pipeline": "k", "seabed": "tab:green", "water": "tab:cyan", "subbottom": "tab:brown",
-                "seabed-nadir": "tab:olive", "subbottom-nadir": "tab:olive", "unknown": "tab:gray"}
+                "seabed-nadir": "tab:olive", "subbottom-nadir": "tab:orange", "unknown": "tab:gray"}
 
 
 def plot_survey_map(path, *, nav: SurveyNavigation, det_ping, det_cf, det_pos, lines, threshold: float,
@@ -52,8 +52,8 @@ def plot_survey_map(path, *, nav: SurveyNavigation, det_ping, det_cf, det_pos, l
     Coherence peaks above ``threshold`` at their georeferenced positions,
     coloured by CF, over the ship track (blue) with the broadside directions
     of every 30th ping (2 minutes at the paper's 4 s interval) out to the
-    grid's largest horizontal range, and each line's path labelled with its
-    number and kind (pipelines black and thick).  Without navigation the
+    grid's largest horizontal range, and each line's path coloured by its
+    kind (pipelines black, thick and numbered).  Without navigation the
     axes are along-track distance (ping time x speed) and cross-track
     offset.
 
@@ -94,12 +94,18 @@ def plot_survey_map(path, *, nav: SurveyNavigation, det_ping, det_cf, det_pos, l
     if len(x):
         sc = ax.scatter(x, y, c=det_cf, s=8, cmap="plasma", vmin=threshold, vmax=1, zorder=3)
         fig.colorbar(sc, ax=ax, label="coherence factor", shrink=0.8)
+    shown = set()
     for row, p in zip(lines.rows, lines.paths):
         p = p - shift
-        pipe = row["kind"] == "pipeline"
-        ax.plot(p[:, 0], p[:, 1], color=KIND_COLOURS.get(row["kind"], "tab:gray"), lw=2.0 if pipe else 1.0, zorder=4)
-        ax.annotate(f"{row['line']} {row['kind']}", p[-1], fontsize=8, xytext=(3, 3), textcoords="offset points",
-                    fontweight="bold" if pipe else "normal")
+        kind = row["kind"]
+        pipe = kind == "pipeline"
+        # one legend entry per kind; only the pipelines are labelled on the map (the rest crowd around nadir)
+        ax.plot(p[:, 0], p[:, 1], color=KIND_COLOURS.get(kind, "tab:gray"), lw=2.0 if pipe else 1.0, zorder=4,
+                label=None if kind in shown else f"{kind} line")
+        shown.add(kind)
+        if pipe:
+            ax.annotate(f"{row['line']}", p[-1], fontsize=9, xytext=(3, 3), textcoords="offset points",
+                        fontweight="bold")
     n_pipe = sum(r["kind"] == "pipeline" for r in lines.rows)
     ax.set_title(f"coherence peaks, CF > {threshold:g}: {len(x)} detections in {len(np.unique(det_ping))} pings; "
                  f"{len(lines.rows)} line(s), {n_pipe} pipeline(s)")
