@@ -22,9 +22,9 @@ the nearer of the two.
 * **fragments**: ``pipeline`` lines that pass within ``match_m`` of it in
   at least three pings;
 * the line's **position error** (RMS of its cross-track offset minus the
-  target's, over the pings it spans near the target: horizontal, in the
-  ping's plane) and **burial error** (its burial minus the target's axis
-  depth below the seabed);
+  target's, over every ping of its extent where the target crosses the
+  plane: horizontal, in the ping's plane) and **burial error** (its burial
+  minus the target's axis depth below the seabed);
 
 and **false lines**: ``pipeline`` lines near no line target, per km of track.
 """
@@ -148,8 +148,9 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
                "fragments": int(frags), "line": int(lines.rows[best]["line"]) if best >= 0 else -1,
                "position_rms_m": math.nan, "burial_error_m": math.nan}
         if best >= 0:
+            # over every ping of the line's extent where the target crosses the plane, near it or not
             pings, y = lines.ping_paths[best]
-            on = np.isin(pings, near[best, t])
+            on = np.isfinite(truth.y[pings, t])
             row["position_rms_m"] = float(np.sqrt(np.mean(truth.distance(pings[on], y[on], t) ** 2)))
             row["burial_error_m"] = float(lines.rows[best]["burial_m"] - np.nanmean(truth.burial[pings[on], t]))
         rows.append(row)

@@ -12,7 +12,7 @@ spreading (amplitude ``1 / L``, ``L = c t`` the unfolded path)
 ``K`` the unknown source level and gains, ``Rs`` the sea surface's
 reflection coefficient (``-1``, less its roughness loss), and so
 
-    |R| = (A2 / A1) (t2 / t1) exp(alpha c (t2 - t1) / 2) / |Rs|
+    |R| = (A2 / A1) (t2 / t1) exp(alpha c (t2 - t1)) / |Rs|
 
 without knowing ``K`` (``alpha`` the water's absorption, in nepers per
 metre).  Each amplitude is measured as the square root of the trace's
@@ -60,6 +60,8 @@ class NadirEchoes:
         ``|R|`` of the seabed at normal incidence (NaN without a multiple).
     reason : str
         Why ``reflection`` is NaN ("" when it is not).
+    primary_beam_deg, multiple_beam_deg : float
+        Beams (degree from nadir, earth frame) the echoes were measured on.
     """
 
     primary_s: float
@@ -68,6 +70,8 @@ class NadirEchoes:
     multiple_amplitude: float
     reflection: float
     reason: str = ""
+    primary_beam_deg: float = 0.0
+    multiple_beam_deg: float = 0.0
 
 
 def echo_energy(envelope: np.ndarray, times_s: np.ndarray, t_s: float, half_window_s: float,
@@ -102,6 +106,8 @@ def _peak_after(envelope: np.ndarray, times_s: np.ndarray, start_s: float, stop_
 def _check_trace(env: np.ndarray, t: np.ndarray, sound_speed_m_s: float, bandwidth_hz: float) -> None:
     require(env.ndim == 1 and env.size == t.size and env.size >= 8, OptionError,
             f"nadir echoes need a trace and its times of one length >= 8, got {env.shape} and {t.shape}")
+    require(bool(np.isfinite(env).all()) and bool(np.all(np.diff(t) > 0)), OptionError,
+            "nadir echoes need a finite trace and increasing times (NaN or Inf samples, or a bad time axis)")
     require(sound_speed_m_s > 0 and bandwidth_hz > 0, OptionError,
             "nadir echoes need a positive sound speed and bandwidth")
 
@@ -142,16 +148,14 @@ def nadir_echoes(trace: np.ndarray, times_s: np.ndarray, *, sound_speed_m_s: flo
     t = np.asarray(times_s, dtype=np.float64)
     _check_trace(env, t, sound_speed_m_s, bandwidth_hz)
     w = half_window_s if half_window_s is not None else 4.0 / bandwidth_hz
-    top = float(np.max(env)) if env.size else 0.0
+    top = float(np.max(env))
     if not top > 0:
         return NadirEchoes(math.nan, math.nan, math.nan, math.nan, math.nan, "empty trace")
     t1 = _peak_after(env, t, t[0], t[-1], top * 10 ** (-PRIMARY_BELOW_MAX_DB / 20), 2 * w)
-    # noise: the water column before the primary, clear of its window
-    quiet = (t < t1 - 3 * w) & (t > t[0])
-    noise = float(np.median(env[quiet] ** 2)) if quiet.sum() > 8 else 0.0
+    noise = _noise_power(env, t, t1, w)
     e1 = echo_energy(env, t, t1, w, noise)
     lo, hi = _multiple_window(t1, w, sound_speed_m_s, transducer_depth_m, max_transducer_depth_m)
-    if hi + w > t[-1]:
+    if hi + 3 * w > t[-1]:
         return NadirEchoes(t1, math.nan, math.sqrt(e1), math.nan, math.nan,
                            f"the multiple (expected near {2 * t1 * 1e3:.1f} ms) lies beyond the record's end "
                            f"({t[-1] * 1e3:.1f} ms)")
@@ -163,9 +167,16 @@ def nadir_echoes(trace: np.ndarray, times_s: np.ndarray, *, sound_speed_m_s: flo
     if not (math.isfinite(t2) and e2 > 0 and e1 > 0):
         return NadirEchoes(t1, t2, math.sqrt(e1), math.nan, math.nan, "no multiple above the noise")
     alpha_np_m = absorption_db_per_km / 1000 / (20 / math.log(10))
-    r = math.sqrt(e2 / e1) * (t2 / t1) * math.exp(alpha_np_m * sound_speed_m_s * (t2 - t1) / 2) \
+    r = math.sqrt(e2 / e1) * (t2 / t1) * math.exp(alpha_np_m * sound_speed_m_s * (t2 - t1)) \
         / 10 ** (-surface_loss_db / 20)
     return NadirEchoes(t1, t2, math.sqrt(e1), math.sqrt(e2), r)
+
+
+def _noise_power(env: np.ndarray, t: np.ndarray, t1: float, w: float) -> float:
+    """Mean noise power of the water column before the primary, clear of its window (0 when too short):
+    ``|noise|^2`` is exponential, its mean the median over ln 2 (the median ignores a stray echo)."""
+    quiet = (t < t1 - 3 * w) & (t > t[0])
+    return float(np.median(env[quiet] ** 2)) / math.log(2) if quiet.sum() > 8 else 0.0
 
 
 def _multiple_window(t1: float, w: float, c: float, depth_m: float | None, max_depth_m: float) -> tuple:
@@ -199,6 +210,8 @@ class NadirMeter:
     """
 
     def __init__(self, imager_factory, vertical, *, fan_deg: float = 6.0, fan_step_deg: float = 0.2):
+        require(0 < fan_step_deg <= fan_deg <= 30, OptionError,
+                f"the fan needs 0 < step <= half-width <= 30 degrees, got {fan_step_deg!r} and {fan_deg!r}")
         self.imager_factory = imager_factory
         self.vertical = vertical
         self.angles = np.arange(-fan_deg, fan_deg + fan_step_deg / 2, fan_step_deg)
@@ -216,8 +229,8 @@ class NadirMeter:
         step = c * float(t[1] - t[0]) / 2
         r1, r2 = c * first.primary_s / 2, c * first.multiple_s / 2
         amps = []
-        for r in (r1, r2):
-            ranges = np.arange(r - c * w, r + c * w + step / 2, step)
+        for r in (r1, r2):  # the same +-w in two-way time as nadir_echoes
+            ranges = np.arange(r - c * w / 2, r + c * w / 2 + step / 2, step)
             img = self.imager_factory(PolarGrid(ranges, self.angles)).image(ping)
             s, m = np.asarray(img.sums.s), np.asarray(img.sums.m)
             power = np.where(m > 0, np.abs(s) ** 2 / np.maximum(m, 1) ** 2, 0.0)
@@ -225,8 +238,7 @@ class NadirMeter:
             amps.append((math.sqrt(float(energy.max())), float(self.angles[np.argmax(energy)])))
         (a1, th1), (a2, th2) = amps
         scale = first.reflection / (first.multiple_amplitude / first.primary_amplitude)
-        return NadirEchoes(first.primary_s, first.multiple_s, a1, a2, a2 / a1 * scale,
-                           f"beams {th1:+.1f} and {th2:+.1f} degrees")
+        return NadirEchoes(first.primary_s, first.multiple_s, a1, a2, a2 / a1 * scale, "", th1, th2)
 
 
 def patch_reflection(values) -> tuple[float, float, int]:
@@ -290,10 +302,11 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
         As :func:`nadir_echoes`.
     """
     t1, t2 = np.asarray(primary_s, dtype=np.float64), np.asarray(multiple_s, dtype=np.float64)
-    ok = np.flatnonzero(np.isfinite(t1) & np.isfinite(t2))
+    times_s = np.asarray(times_s, dtype=np.float64)
+    w = half_window_s if half_window_s is not None else 4.0 / max(bandwidth_hz, 1e-30)
+    ok = _usable_pings(len(traces), times_s, t1, t2, bandwidth_hz, w)
     if ok.size < 3:
         return math.nan, math.nan
-    w = half_window_s if half_window_s is not None else 4.0 / bandwidth_hz
     # the multiple is the clean echo (two specular bounces, little scattered energy about it): its times
     # carry each ping's change, half of it the primary's; the primary's picks only set the common offset
     trend2 = _robust_trend(ok, t2[ok])
@@ -304,7 +317,7 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
     p = np.array([_window(traces[i], times_s, a, w) for i, a in zip(ok, trend1)])
     m = np.array([_window(traces[i], times_s, b, w) for i, b in zip(ok, trend2)])
     gain = (np.median(trend2 / trend1) * math.exp(absorption_db_per_km / 1000 / (20 / math.log(10))
-            * sound_speed_m_s * float(np.median(trend2 - trend1)) / 2) / 10 ** (-surface_loss_db / 20))
+            * sound_speed_m_s * float(np.median(trend2 - trend1))) / 10 ** (-surface_loss_db / 20))
 
     def estimate(rows):
         e = [max(_coherent_energy(x[rows]), 0.0) for x in (p, m)]
@@ -312,9 +325,23 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
 
     r = estimate(np.arange(ok.size))
     jack = np.array([estimate(np.delete(np.arange(ok.size), j)) for j in range(ok.size)])
-    n = ok.size
-    se = math.sqrt((n - 1) / n * float(np.nansum((jack - np.nanmean(jack)) ** 2)))
+    jack = jack[np.isfinite(jack)]
+    n = jack.size
+    if n < 2:
+        return r, math.nan
+    se = math.sqrt((n - 1) / n * float(np.sum((jack - jack.mean()) ** 2)))
     return r, se
+
+
+def _usable_pings(n_traces: int, times_s: np.ndarray, t1: np.ndarray, t2: np.ndarray, bandwidth_hz: float,
+                  w: float) -> np.ndarray:
+    """Indices of the pings whose echo times are known and whose windows (with the fractional shift's margin)
+    lie inside the record; one-line errors for inconsistent inputs."""
+    require(bandwidth_hz > 0 and t1.size == t2.size == n_traces, OptionError,
+            f"coherent reflection needs a positive bandwidth and one primary and multiple time per trace, got "
+            f"{n_traces} traces, {t1.size} and {t2.size} times")
+    inside = (t1 - 5 * w >= times_s[0]) & (t2 + 5 * w <= times_s[-1])
+    return np.flatnonzero(np.isfinite(t1) & np.isfinite(t2) & inside)
 
 
 def _coherent_energy(x: np.ndarray) -> float:

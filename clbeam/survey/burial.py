@@ -105,8 +105,8 @@ def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior
         ``(n,)`` peak positions, earth frame (m).
     centre_yz_m : array_like
         ``(n, 2)`` or ``(2,)`` centre of each peak's arc: its grid centre (m).
-    seabed : (float, float)
-        ``(z0, slope)`` of the ping's seabed (:func:`seabed_line`).
+    seabed : array_like
+        ``(z0, slope)`` of the ping's seabed (:func:`seabed_line`), or ``(n, 2)`` one per peak.
     prior_burial_m, prior_sigma_m : float
         Burial the prior expects and its spread (m).
     arc_sigma_rad : float
@@ -124,7 +124,8 @@ def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior
     y = np.asarray(y_m, dtype=np.float64)
     z = np.asarray(z_m, dtype=np.float64)
     c = np.broadcast_to(np.asarray(centre_yz_m, dtype=np.float64), (y.size, 2))
-    z0, slope = seabed
+    sb = np.broadcast_to(np.asarray(seabed, dtype=np.float64), (y.size, 2))
+    z0, slope = sb[:, 0], sb[:, 1]
     theta = np.arctan2(y - c[:, 0], z - c[:, 1])
     rng = np.hypot(y - c[:, 0], z - c[:, 1])
     sigma_t = rng * arc_sigma_rad / np.maximum(np.abs(np.cos(theta)), 0.05)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 from clbeam.errors import OptionError, require
@@ -43,12 +44,17 @@ class LineOptions:
     burial_resolution_m : float
         Largest standard error of a line's burial that counts as measured (m).
     nadir_angle_deg : float
-        Lines within this angle of nadir on their mean are nadir echoes
+        Lines within this angle of nadir (median over their pings) are nadir echoes
         (kinds ``seabed-nadir``, ``subbottom-nadir``).
     beam_width_deg : float
         Along-track width of the transmit beam (degree; the SBP29's 3.5 m
         column at the 2-9 kHz band's centre: about 4.5): a line crossing the
         track is seen over that stretch, smeared across each ping.
+    nominal_spacing_m : float
+        Along-track distance between pings assumed when a survey has neither
+        navigation nor ping times and a ship speed (m; the paper's 4 kn at
+        4 s: 8.2); a warning says so, and lengths and headings are not
+        reported.
     """
 
     across_gate_m: float = 1.5
@@ -66,17 +72,22 @@ class LineOptions:
     burial_resolution_m: float = 0.5
     nadir_angle_deg: float = 10.0
     beam_width_deg: float = 4.5
+    nominal_spacing_m: float = 8.2
 
     def __post_init__(self):
-        for name in ("across_gate_m", "burial_gate_m", "fit_length_m", "max_burial_m", "burial_resolution_m"):
+        for name in ("across_gate_m", "burial_gate_m", "fit_length_m", "max_burial_m", "burial_resolution_m",
+                     "nominal_spacing_m"):
             v = getattr(self, name)
-            require(isinstance(v, (int, float)) and math.isfinite(v) and v > 0, OptionError,
-                    f"line option {name} must be > 0, got {v!r}")
-        for name in ("window_pings", "seed_hits", "min_hits", "fit_hits"):
+            require(isinstance(v, numbers.Real) and math.isfinite(v) and v > 0, OptionError,
+                    f"line option {name} must be a number > 0, got {v!r}")
+        require(self.across_gate_m <= 20, OptionError,
+                f"line gate must be at most 20 m (a line is narrow; the clutter around it is counted beyond), "
+                f"got {self.across_gate_m!r}")
+        for name, least in (("window_pings", 2), ("seed_hits", 2), ("min_hits", 2), ("fit_hits", 3),
+                            ("max_gap_pings", 0)):
             v = getattr(self, name)
-            require(int(v) == v and v >= 2, OptionError, f"line option {name} must be an integer >= 2, got {v!r}")
-        require(int(self.max_gap_pings) == self.max_gap_pings and self.max_gap_pings >= 0, OptionError,
-                f"line option max_gap_pings must be an integer >= 0, got {self.max_gap_pings!r}")
+            require(isinstance(v, numbers.Real) and math.isfinite(v) and int(v) == v
+                    and v >= least, OptionError, f"line option {name} must be an integer >= {least}, got {v!r}")
         require(0 < self.max_angle_deg < 89, OptionError,
                 f"line option max_angle_deg must be within 0-89 degrees, got {self.max_angle_deg!r}")
         require(self.seed_hits <= self.window_pings, OptionError,

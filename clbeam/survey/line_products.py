@@ -95,20 +95,25 @@ def smooth_seabed(seabed: np.ndarray, imaged: np.ndarray, half_window: int = 4) 
     return out
 
 
-def track_distance_m(nav: SurveyNavigation, pings: np.ndarray) -> tuple[np.ndarray, bool]:
+def track_distance_m(nav: SurveyNavigation, pings: np.ndarray, nominal_spacing_m: float = 8.2) -> tuple:
     """Along-track distance of ``pings`` (m) and whether it is known.
 
     The distance travelled between the navigated positions, or the ship
-    speed times the ping time; without either, the ping number (then
-    lengths and headings are not reported).
+    speed times the ping time; without either, ``nominal_spacing_m`` per
+    ping (then lengths and headings are not reported).  Never decreasing,
+    and a ship at rest still moves a millimetre a ping (the line fits need
+    distinct distances).
     """
     if nav.all_nav:
         e, n = nav.e[pings], nav.n[pings]
-        return np.r_[0.0, np.cumsum(np.hypot(np.diff(e), np.diff(n)))], True
-    s = nav.along_m(pings)
-    if np.isfinite(s).all():
-        return s, True
-    return pings.astype(np.float64), False
+        s, known = np.r_[0.0, np.cumsum(np.hypot(np.diff(e), np.diff(n)))], True
+    else:
+        s = nav.along_m(pings)
+        known = bool(np.isfinite(s).all())
+        if not known:
+            s = np.arange(pings.size) * nominal_spacing_m
+    s = np.maximum.accumulate(s) + 1e-3 * np.arange(pings.size)
+    return s, known
 
 
 def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray, imaged: np.ndarray,
@@ -140,8 +145,11 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
         return SurveyLines([], [], np.full(n, -1, dtype=np.int64), 0, [] if nav.all_nav else None, options.min_score)
     sb = smooth_seabed(seabed, imaged)
     order = np.argsort(det.ping, kind="stable")
-    frame = _frame(det, order, sb, centre_yz, pings, nav)
-    scaled = track_distance_m(nav, pings)[1]
+    s_ping, scaled = track_distance_m(nav, pings, options.nominal_spacing_m)
+    if not scaled:
+        log.warning("no along-track distance (navigation, or ping times and --speed): lines searched with pings "
+                    "%.1f m apart; their lengths and headings are not reported", options.nominal_spacing_m)
+    frame = _frame(det, order, sb, centre_yz, pings, s_ping)
     tracks = find_tracks(frame, options)
     size = _search_size(frame)
     described = [(tr, *_describe(frame, tr, options, size, sb, centre_yz, nav, scaled)) for tr in tracks]
@@ -179,29 +187,31 @@ def _without_duplicates(described: list, options: LineOptions) -> list:
 
 
 def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray, pings: np.ndarray,
-           nav: SurveyNavigation) -> TrackFrame:
+           s_ping: np.ndarray) -> TrackFrame:
     """The detections in the track frame, each moved along its arc against its ping's seabed."""
     p = det.ping[order]
     y, z = det.y[order], det.z[order]
     ya, b, sd, bpost, sy = (np.full(p.size, np.nan) for _ in range(5))
     known = np.isfinite(sb[p]).all(axis=1)
-    for g in np.unique(p[known]):
-        m = p == g
-        ya[m], b[m], sd[m], bpost[m], sy[m] = arc_constrained(y[m], z[m], centre_yz[g], tuple(sb[g]))
+    k = known
+    ya[k], b[k], sd[k], bpost[k], sy[k] = arc_constrained(y[k], z[k], centre_yz[p[k]], sb[p[k]])
     ya[~known] = y[~known]
     sy[~known] = 0.0
     r = np.hypot(y - centre_yz[p, 0], z - centre_yz[p, 1])
-    s_ping = track_distance_m(nav, pings)[0]
     s = s_ping[np.searchsorted(pings, p)]
     return TrackFrame(ping=p, s=s, y=ya, b=b, cf=det.cf[order], b_sigma=sd, b_post=bpost,
                       pings=pings, ping_s=s_ping, y_sigma=sy, r=r)
 
 
 def _search_size(frame: TrackFrame) -> SearchSize:
+    """The extent searched: the median ping spacing and the 1-99 % spans of the offsets and burials (a stray
+    detection far out moves no score)."""
     spacing = float(np.median(np.diff(frame.ping_s))) if frame.ping_s.size > 1 else 1.0
     b = frame.b[np.isfinite(frame.b)]
-    return SearchSize(spacing_m=max(spacing, 1e-3), swath_m=float(np.ptp(frame.y)) if frame.y.size else 0.0,
-                      burial_span_m=float(np.ptp(b)) if b.size else 0.0)
+
+    def span(v):
+        return float(np.subtract(*np.percentile(v, [99, 1]))) if v.size else 0.0
+    return SearchSize(spacing_m=max(spacing, 1e-3), swath_m=span(frame.y), burial_span_m=span(b))
 
 
 def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSize, sb: np.ndarray,
@@ -212,26 +222,36 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSi
     path_y = smooth_path(frame, tr, options.fit_length_m / 2)
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
-    gate_y, gate_b = effective_gates(frame, tr, path_y, options)
+    score = _score(frame, tr, path_y, burial, options, size)
     spec = _specular(frame, tr, path_y, sb, centre_yz)
     if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
         path_y, burial, burial_se = spec["path_y"], spec["burial_m"], spec["burial_error_m"]
     resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
-    others = np.setdiff1d(np.arange(int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])), m)
-    line_y_at = path_y[np.searchsorted(ext, frame.ping[others])]
-    density = clutter_density(frame.y[others], frame.b[others], line_y_at, burial if math.isfinite(burial)
-                              else math.nan, n_pings=ext.size, across_gate_m=gate_y,
-                              burial_gate_m=gate_b, burial_half_m=max(3.0, 1.5 * gate_b))
-    score = line_score(m.size, ext.size, density, gate_y, gate_b, size, options.max_angle_deg)
     z_line = sb[ext, 0] + sb[ext, 1] * path_y + (burial if math.isfinite(burial) else 0.0)
     angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))
-    row = {"kind": line_kind(burial, burial_se, float(np.median(np.abs(angle))), options),
+    row = {"kind": line_kind(burial, burial_se, float(np.nanmedian(np.abs(angle))), options),
            "n_pings": int(m.size), "first_ping": int(ext[0]), "last_ping": int(ext[-1]),
            "mean_cf": float(np.mean(frame.cf[m])), "score": float(score),
            "burial_m": burial, "burial_std_m": spread, "burial_error_m": burial_se, "burial_resolved": int(resolved),
            "mean_y_m": float(np.mean(path_y)), "mean_z_m": float(np.nanmean(z_line)),
            "detected_fraction": float(m.size / ext.size), "specular": int(spec is not None)}
     return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+
+
+def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, options: LineOptions,
+           size: SearchSize) -> float:
+    """The line's score (:func:`clbeam.survey.line_score.line_score`) in the frame its detections were found in:
+    the hits are the members within the (narrowed) gates, the clutter the other detections of its pings."""
+    m = tr.members
+    ext = frame.pings[tr.first:tr.last + 1]
+    gate_y, gate_b = effective_gates(frame, tr, path_y, options)
+    at = np.searchsorted(ext, frame.ping[m])
+    hits = int(np.sum(np.abs(frame.y[m] - path_y[at]) <= gate_y))
+    others = np.setdiff1d(np.arange(int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])), m)
+    line_y_at = path_y[np.searchsorted(ext, frame.ping[others])]
+    density = clutter_density(frame.y[others], frame.b[others], line_y_at, burial, n_pings=ext.size,
+                              across_gate_m=gate_y, burial_gate_m=gate_b, burial_half_m=max(3.0, 1.5 * gate_b))
+    return line_score(hits, ext.size, density, gate_y, gate_b, size, options.max_angle_deg)
 
 
 def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray) -> dict | None:

@@ -60,6 +60,8 @@ def tests_per_km(size: SearchSize, n_pings: int, across_gate_m: float, burial_ga
 
 def log10_binomial_tail(hits: int, trials: int, p: float) -> float:
     """``log10 P(X >= hits)`` for ``X ~ Binomial(trials, p)``, summed in logs (exact far into the tail)."""
+    from scipy.special import gammaln
+
     if hits <= 0:
         return 0.0
     if hits > trials or p <= 0:
@@ -67,8 +69,7 @@ def log10_binomial_tail(hits: int, trials: int, p: float) -> float:
     if p >= 1:
         return 0.0
     j = np.arange(hits, trials + 1, dtype=np.float64)
-    lg = np.vectorize(math.lgamma)
-    terms = (math.lgamma(trials + 1) - lg(j + 1) - lg(trials - j + 1) + j * math.log(p)
+    terms = (gammaln(trials + 1) - gammaln(j + 1) - gammaln(trials - j + 1) + j * math.log(p)
              + (trials - j) * math.log1p(-p))
     top = float(terms.max())
     return (top + math.log(float(np.exp(terms - top).sum()))) / math.log(10)
@@ -121,8 +122,9 @@ def clutter_density(y: np.ndarray, b: np.ndarray, line_y: np.ndarray, line_b: fl
     across_gate_m, burial_gate_m : float
         The line's gate (m), left out of the count.
     half_width_m, burial_half_m : float
-        Half-extent of the neighbourhood counted (m).
+        Half-extent of the neighbourhood counted (m; across, at least four gates).
     """
+    half_width_m = max(half_width_m, 4 * across_gate_m)  # the neighbourhood always reaches beyond the gate
     dy = np.abs(y - line_y)
     near = (dy <= half_width_m) & (dy > across_gate_m)
     if math.isfinite(line_b):

@@ -23,8 +23,8 @@ to the world ping by ping.
    (over at most ``fit_length_m``) predicts the offset and the burial, the
    nearest unused detection within ``across_gate_m`` of it (across the
    line: ``1 / cos`` of its heading wider in ``y``, at most twice) and
-   ``burial_gate_m`` joins, and the track stops after ``max_gap_pings``
-   imaged pings without one.  The local fit follows curved lines (30°/km
+   ``burial_gate_m`` joins, and the track bridges up to ``max_gap_pings``
+   imaged pings in a row without one.  The local fit follows curved lines (30°/km
    bends 0.3 m from a straight line over 100 m).  Detections are used once.
 3. **Scores** (:mod:`clbeam.survey.line_score`): how unlikely the line is as
    a chance alignment of the clutter measured around it; and a **kind**
@@ -55,8 +55,8 @@ class TrackFrame:
     s : numpy.ndarray
         ``(n,)`` along-track distance of the detection's ping (m).
     y, b, cf : numpy.ndarray
-        ``(n,)`` cross-track offset (m), burial below the seabed (m; the
-        depth where the seabed is unknown) and CF.
+        ``(n,)`` cross-track offset (m), burial below the seabed (m; NaN
+        where the ping has no seabed: the burial gate then lets it pass) and CF.
     b_sigma : numpy.ndarray
         ``(n,)`` standard deviation of each burial (m): the burial gate
         widens to twice it (:func:`clbeam.survey.burial.arc_constrained`).
@@ -180,9 +180,12 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
     grids = [(oy, ob, w) for w in (2 * options.burial_gate_m, 8 * options.burial_gate_m)
              for oy, ob in ((0.0, 0.0), (0.5, 0.0), (0.0, 0.5), (0.5, 0.5))]
     wandering = np.nan_to_num(frame.b_sigma[idx], nan=np.inf) > options.burial_gate_m
+    # burials far outside any line of interest (water-column noise, the multiples) vote nowhere: they would
+    # only stretch the cell index
+    plausible = (b >= -2 * options.max_burial_m) & (b <= 3 * options.max_burial_m)
     for oy, ob, width_b in grids:
         # only the peaks whose burial wanders vote in the wide burial bins (all vote in the fine ones)
-        voters = wandering if width_b > 2 * options.burial_gate_m else np.ones(idx.size, dtype=bool)
+        voters = (wandering if width_b > 2 * options.burial_gate_m else np.ones(idx.size, dtype=bool)) & plausible
         if voters.sum() < options.seed_hits:
             continue
         iy = np.floor(icpt[:, voters] / width_y + oy).astype(np.int64)
@@ -331,9 +334,9 @@ def _local_fit(frame: TrackFrame, recent: np.ndarray, options: LineOptions) -> t
 def burial_estimate(b: np.ndarray, sigma: np.ndarray) -> float:
     """A line's burial from its detections' (m): the median of those measured best.
 
-    The detections whose burial standard deviation is within twice the
-    smallest count (near nadir the angle, and so the depth, is sharp; near
-    endfire it slides metres along the arc); NaN when none has one.
+    Only the detections whose burial standard deviation is at most twice
+    the smallest of them count (near nadir the angle, and so the depth, is
+    sharp; near endfire it slides metres along the arc); NaN when none has one.
     """
     ok = np.isfinite(b) & np.isfinite(sigma)
     if not ok.any():
@@ -348,8 +351,8 @@ def line_burial(b: np.ndarray, sigma: np.ndarray, floor_m: float = 0.3) -> tuple
 
     The mean weighted by ``1 / sigma^2`` (``sigma`` at least ``floor_m``:
     a peak's depth is never better than a fraction of the pulse), with
-    detections more than three of their ``sigma`` from it dropped (twice
-    over); the standard error ``1 / sqrt(sum w)``; the weighted standard
+    detections more than three of their ``sigma`` from it dropped (up to
+    three passes); the standard error ``1 / sqrt(sum w)``; the weighted standard
     deviation of the kept burials (the line's depth consistency).  All NaN
     without a measured burial.
     """

@@ -94,23 +94,28 @@ def plot_survey_map(path, *, nav: SurveyNavigation, det_ping, det_cf, det_pos, l
     if len(x):
         sc = ax.scatter(x, y, c=det_cf, s=8, cmap="plasma", vmin=threshold, vmax=1, zorder=3)
         fig.colorbar(sc, ax=ax, label="coherence factor", shrink=0.8)
+    _draw_lines(ax, lines, shift)
+    n_pipe = sum(r["kind"] == "pipeline" for r in lines.rows)
+    ax.set_title(f"coherence peaks, CF > {threshold:g}: {len(x)} detections in {len(np.unique(det_ping))} pings; "
+                 f"{len(lines.rows)} line(s), {n_pipe} pipeline(s)")
+    ax.legend(loc="best", fontsize=8)
+    return _save(plt, fig, path)
+
+
+def _draw_lines(ax, lines, shift: np.ndarray) -> None:
+    """The lines' paths coloured by kind, one legend entry per kind; only the pipelines numbered (the rest
+    crowd around nadir)."""
     shown = set()
     for row, p in zip(lines.rows, lines.paths):
         p = p - shift
         kind = row["kind"]
         pipe = kind == "pipeline"
-        # one legend entry per kind; only the pipelines are labelled on the map (the rest crowd around nadir)
         ax.plot(p[:, 0], p[:, 1], color=KIND_COLOURS.get(kind, "tab:gray"), lw=2.0 if pipe else 1.0, zorder=4,
                 label=None if kind in shown else f"{kind} line")
         shown.add(kind)
         if pipe:
             ax.annotate(f"{row['line']}", p[-1], fontsize=9, xytext=(3, 3), textcoords="offset points",
                         fontweight="bold")
-    n_pipe = sum(r["kind"] == "pipeline" for r in lines.rows)
-    ax.set_title(f"coherence peaks, CF > {threshold:g}: {len(x)} detections in {len(np.unique(det_ping))} pings; "
-                 f"{len(lines.rows)} line(s), {n_pipe} pipeline(s)")
-    ax.legend(loc="best", fontsize=8)
-    return _save(plt, fig, path)
 
 
 def _save(plt, fig, path) -> Path:

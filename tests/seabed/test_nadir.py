@@ -80,7 +80,7 @@ def test_a_sloping_seabed_is_measured_on_the_beams_that_point_at_each_echo():
         assert vertical.reflection / R_CLOSED == pytest.approx(af[1] / af[0], abs=0.04)
         e = meter(p, bandwidth_hz=BAND_HZ)
         assert e.reflection == pytest.approx(R_CLOSED, rel=0.06)
-        assert e.reason == "beams -0.8 and -1.6 degrees"
+        assert (e.primary_beam_deg, e.multiple_beam_deg) == (pytest.approx(-0.8), pytest.approx(-1.6))
 
 
 def test_a_multiple_beyond_the_record_is_said_and_gives_no_coefficient():
@@ -141,3 +141,18 @@ def test_coherent_patch_mean_recovers_r_where_scattering_fills_each_pings_window
     assert np.median(single) < 0.75 * r
     est, se = coherent_reflection(traces, t, p1, p2, bandwidth_hz=BAND_HZ)
     assert abs(est - r) <= 3 * se and se < 0.15 * r
+
+
+def test_absorption_and_surface_loss_corrections_are_the_closed_form():
+    """An echo pair built with water absorption (2 dB/km over the multiple's extra 460 m of path) and a
+    surface losing 1 dB: with the same values given, R comes back; without, it reads low by exactly those."""
+    dt, c = 25e-6, 1500.0
+    t = np.arange(0.2, 0.7, dt)
+    r, t1, t2 = 0.1, 0.3, 0.6066
+    extra_db = 2.0 * c * (t2 - t1) / 1000 + 1.0
+    tr = r / (c * t1) * _pulse(t, t1) - r * r / (c * t2) * 10 ** (-extra_db / 20) * _pulse(t, t2)
+    plain = nadir_echoes(tr, t, sound_speed_m_s=c, bandwidth_hz=BAND_HZ)
+    fixed = nadir_echoes(tr, t, sound_speed_m_s=c, bandwidth_hz=BAND_HZ, absorption_db_per_km=2.0,
+                         surface_loss_db=1.0)
+    assert fixed.reflection == pytest.approx(r, rel=0.01)
+    assert 20 * math.log10(fixed.reflection / plain.reflection) == pytest.approx(extra_db, abs=0.05)

@@ -102,8 +102,8 @@ def test_one_line_at_any_heading_and_bend_is_one_track_of_its_own_detections(hea
 
 
 def test_a_gap_of_several_pings_is_bridged_and_a_longer_one_splits():
-    """A gap of 6 pings (the default largest) stays one track; a gap of 12 gives two."""
-    for gap, n_tracks in (((30, 35), 1), ((30, 41), 2)):
+    """A gap of 6 pings (the default largest) stays one track; gaps of 7 and 12 give two."""
+    for gap, n_tracks in (((30, 35), 1), ((30, 36), 2), ((30, 41), 2)):
         frame, owner = synthetic_frame(80, [{"y0": 300.0, "heading": 15.0, "p": 0.95, "gap": gap}], 0.05, seed=2)
         tracks = find_tracks(frame, LineOptions())
         mine = [t for t, (o, _) in zip(tracks, track_owners(frame, tracks, owner)) if o == 0]
@@ -146,9 +146,9 @@ def test_score_is_minus_log10_of_tests_times_tail():
 @pytest.mark.slow
 def test_clutter_alone_gives_fewer_chance_lines_than_the_score_promises():
     """Independent uniform clutter at Line 1's density over 4 km: the lines
-    scoring at least 0 (one chance line per km promised at most) number at
-    most 4, and none reaches the default threshold's... The bound is
-    a-contrario: the count of tests overcounts, so the rate is far below."""
+    scoring at least 0 (the score promises at most one chance line per km)
+    number at most 4, and those reaching the default threshold at most 0.1
+    per km plus one."""
     frame, _ = synthetic_frame(500, [], 0.1, seed=5)
     tracks = find_tracks(frame, LineOptions())
     size = SearchSize(spacing_m=SPACING, swath_m=SWATH[1] - SWATH[0], burial_span_m=BURIAL_RANGE[1] - BURIAL_RANGE[0])
