@@ -37,7 +37,7 @@ class LineOptions:
     min_score : float
         Score a line needs (``-log10`` of the expected number of chance
         lines as good per km of survey line, :mod:`clbeam.survey.line_score`;
-        the default 3 is set from clutter-only simulated surveys, where
+        the default 4 is set from clutter-only simulated surveys, where
         clutter is not independent from ping to ping: ``docs/lines.md``).
     min_burial_m, max_burial_m : float
         Burial range of the kind ``pipeline`` (m).
@@ -66,7 +66,7 @@ class LineOptions:
     max_gap_pings: int = 6
     fit_hits: int = 8
     fit_length_m: float = 120.0
-    min_score: float = 3.0
+    min_score: float = 4.0
     min_burial_m: float = 0.5
     max_burial_m: float = 10.0
     burial_resolution_m: float = 0.5
