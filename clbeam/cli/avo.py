@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 
+from clbeam.cli.options import progress
 from clbeam.constants import (
     SBP29_ARRAY_WIDTH_M,
     SBP29_BAND_HZ,
@@ -60,6 +61,8 @@ def run(args) -> int:
     else:
         rows = survey_records(patches, frequency_hz=opts.frequency_hz,
                               sound_speed_water_m_s=opts.sound_speed_m_s)
+    if args.pings:
+        rows = _with_nadir_reflection(rows, args)
     write_csv(out, rows)
     figs = write_figures(args.figures, patches, rows, frequency_hz=opts.frequency_hz,
                          sound_speed_m_s=opts.sound_speed_m_s) if args.figures else []
@@ -70,6 +73,23 @@ def run(args) -> int:
               + (f"; {len(figs)} figures -> {args.figures}" if figs else "")
               + f" in {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def _with_nadir_reflection(rows: list, args) -> list:
+    """The rows with each patch's nadir reflection coefficient from the ping file ``--pings``."""
+    import dataclasses
+
+    from clbeam.seabed.nadir import patch_reflections
+
+    ranges = sorted({(r.ping_start, r.ping_stop) for r in rows})
+    bar = progress(None, total=sum(b - a for a, b in ranges), desc="nadir", quiet=args.quiet)
+    try:
+        found = dict(zip(ranges, patch_reflections(args.pings, ranges, bandwidth_hz=args.bandwidth,
+                                                    progress=bar.update)))
+    finally:
+        bar.close()
+    return [dataclasses.replace(r, nadir_reflection=found[r.ping_start, r.ping_stop][0],
+                                nadir_reflection_error=found[r.ping_start, r.ping_stop][1]) for r in rows]
 
 
 def add_arguments(p) -> None:
@@ -96,4 +116,7 @@ def add_arguments(p) -> None:
     p.add_argument("--ping-spacing", type=float, default=1.0, metavar="M",
                    help="along-track ping spacing used when the file has no navigation (m, default 1)")
     p.add_argument("--no-invert", action="store_true", help="attributes only, no model inversion")
+    p.add_argument("--pings", default=None, metavar="PINGS.nc",
+                   help="the ping file the images were made from: adds each patch's nadir reflection coefficient "
+                        "from the seabed echo and its surface multiple (docs/avo.md)")
     p.add_argument("--figures", default=None, metavar="DIR", help="also draw the AVO figures (PNG) into DIR")

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -361,3 +362,45 @@ def _robust_trend(index: np.ndarray, values: np.ndarray) -> np.ndarray:
     if keep.sum() >= 2 and np.ptp(index[keep]) > 0:
         fit = np.polyfit(index[keep], values[keep], 1)
     return np.polyval(fit, index)
+
+
+def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str = "opencl", device=None,
+                      progress=None) -> list[tuple[float, float]]:
+    """The nadir reflection coefficient of patches of a ping file: ``(R, standard error)`` per ``(start, stop)``.
+
+    Each ping's vertical beam (:class:`~clbeam.imaging.vertical_beam.VerticalBeam`)
+    gives its echo times (:func:`nadir_echoes`); each patch's coherent mean
+    gives its coefficient (:func:`coherent_reflection`).
+
+    Parameters
+    ----------
+    pings_path : path-like
+        The ping file (SPEC §7) the patches' images were made from.
+    ranges : sequence of (int, int)
+        Patches as ping ranges ``start..stop - 1``.
+    bandwidth_hz : float
+        Pulse bandwidth (Hz).
+    backend, device
+        Imaging engine of the vertical beam.
+    progress : callable, optional
+        Called with no argument after each ping.
+    """
+    from clbeam.imaging.vertical_beam import TraceAxis, VerticalBeam
+    from clbeam.io.pingfile import PingFile
+
+    with PingFile(pings_path) as pings:
+        stop = max((b for _, b in ranges), default=0)
+        require(stop <= pings.n_pings, OptionError,
+                f"{Path(pings_path).name}: the patches reach ping {stop - 1}, the file has {pings.n_pings} ping(s)")
+        beam = VerticalBeam(TraceAxis.for_file(pings), backend=backend, device=device)
+        t = beam.axis.times_s
+        traces, t1, t2 = {}, {}, {}
+        for i in sorted({i for a, b in ranges for i in range(a, b)}):
+            p = pings.ping(i)
+            traces[i] = beam(p).analytic
+            e = nadir_echoes(traces[i], t, sound_speed_m_s=float(p.sound_speed_m_s), bandwidth_hz=bandwidth_hz)
+            t1[i], t2[i] = e.primary_s, e.multiple_s
+            if progress is not None:
+                progress()
+    return [coherent_reflection([traces[i] for i in range(a, b)], t, [t1[i] for i in range(a, b)],
+                                [t2[i] for i in range(a, b)], bandwidth_hz=bandwidth_hz) for a, b in ranges]

@@ -33,7 +33,10 @@ class PatchRecord:
 
     ``fluid_factor_db`` and ``product_db2`` depend on the survey's trend
     ``(trend_g, trend_d_db)``; the inversion fields are NaN when no
-    inversion was run.
+    inversion was run; ``nadir_reflection`` (and its standard error) is the
+    seabed's normal-incidence reflection coefficient of the patch's pings
+    from the nadir echo and its surface multiple
+    (:func:`clbeam.seabed.nadir.patch_reflections`), NaN without the ping file.
     """
 
     ping_start: int
@@ -63,6 +66,8 @@ class PatchRecord:
     log10_w2_std: float = math.nan
     volume_sigma2: float = math.nan
     misfit_db: float = math.nan
+    nadir_reflection: float = math.nan
+    nadir_reflection_error: float = math.nan
 
 
 COLUMNS = tuple(f.name for f in fields(PatchRecord))

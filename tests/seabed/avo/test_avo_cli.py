@@ -88,3 +88,36 @@ def test_bad_inputs_are_one_line_errors(tmp_path, two_provinces):
         run([str(two_provinces), "-o", str(tmp_path / "a.csv"), "--pings-per-patch", "0"])
     with pytest.raises(ClbeamError, match="frequency_hz"):
         run([str(two_provinces), "-o", str(tmp_path / "a.csv"), "--frequency", "-5"])
+
+
+def test_pings_add_each_patchs_nadir_reflection_coefficient_the_closed_form(tmp_path):
+    """``--pings``: the patches of a simulated line over a flat mud seabed (Line 1's, without pipelines or
+    slope) carry the seabed's normal-incidence reflection coefficient from the nadir echo and its surface
+    multiple, within 5 % of the closed form (m - n) / (m + n) = 0.1011, with a finite standard error."""
+    import tomllib
+    from importlib.resources import files
+
+    from clbeam.cli.main import main
+    from clbeam.io.pingwrite import write_ping_file
+    from clbeam.sim import simulate
+    from clbeam.sim.catalog import scene_from_mapping
+
+    d = tomllib.loads((files("clbeam.sim.scenes") / "line1.toml").read_text())
+    d["target"] = []
+    d["seabed"]["slope_across_deg"] = 0.0
+    d["record"]["max_range_m"] = 500.0
+    d["survey"]["pings"] = 8
+    pings = write_ping_file(simulate(scene_from_mapping(d, name="flat")), tmp_path / "pings.nc")
+    images = tmp_path / "img.nc"
+    assert main(["image", str(pings), "-o", str(images), "--range-res", "0.5", "--angle-res", "0.5",
+                 "--angles", "-75", "75", "--max-range", "500", "-q"]) == 0
+    out = tmp_path / "avo.csv"
+    assert run([str(images), "-o", str(out), "--pings-per-patch", "4", "--no-invert", "--pings", str(pings),
+                "-q"]) == 0
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert tuple(rows[0].keys()) == COLUMNS and len(rows) == 4
+    r_closed = (1.25 - 1 / 0.98) / (1.25 + 1 / 0.98)
+    for r in rows:
+        assert float(r["nadir_reflection"]) == pytest.approx(r_closed, rel=0.05)
+        assert 0 < float(r["nadir_reflection_error"]) < 0.05 * r_closed
