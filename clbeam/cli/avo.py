@@ -89,7 +89,8 @@ def _with_nadir_reflection(rows: list, args) -> list:
     finally:
         bar.close()
     return [dataclasses.replace(r, nadir_reflection=found[r.ping_start, r.ping_stop][0],
-                                nadir_reflection_error=found[r.ping_start, r.ping_stop][1]) for r in rows]
+                                nadir_reflection_error=found[r.ping_start, r.ping_stop][1],
+                                nadir_calibration_db=found[r.ping_start, r.ping_stop][2]) for r in rows]
 
 
 def add_arguments(p) -> None:
@@ -118,5 +119,6 @@ def add_arguments(p) -> None:
     p.add_argument("--no-invert", action="store_true", help="attributes only, no model inversion")
     p.add_argument("--pings", default=None, metavar="PINGS.nc",
                    help="the ping file the images were made from: adds each patch's nadir reflection coefficient "
-                        "from the seabed echo and its surface multiple (docs/avo.md)")
+                        "from the seabed echo and its surface multiple, and the calibration it gives (reported, "
+                        "not applied; docs/avo.md)")
     p.add_argument("--figures", default=None, metavar="DIR", help="also draw the AVO figures (PNG) into DIR")

@@ -308,15 +308,7 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
     ok = _usable_pings(len(traces), times_s, t1, t2, bandwidth_hz, w)
     if ok.size < 3:
         return math.nan, math.nan
-    # the multiple is the clean echo (two specular bounces, little scattered energy about it): its times
-    # carry each ping's change, half of it the primary's; the primary's picks only set the common offset
-    trend2 = _robust_trend(ok, t2[ok])
-    resid = t2[ok] - trend2
-    mad = 1.4826 * float(np.median(np.abs(resid)))
-    trend2 = np.where(np.abs(resid) <= 3 * max(mad, 1e-6), t2[ok], trend2)  # the picks, unless one went astray
-    trend1 = trend2 / 2 + float(np.median(t1[ok] - t2[ok] / 2))
-    p = np.array([_window(traces[i], times_s, a, w) for i, a in zip(ok, trend1)])
-    m = np.array([_window(traces[i], times_s, b, w) for i, b in zip(ok, trend2)])
+    p, m, trend1, trend2 = _aligned_windows(traces, times_s, t1, t2, ok, w)
     gain = (np.median(trend2 / trend1) * math.exp(absorption_db_per_km / 1000 / (20 / math.log(10))
             * sound_speed_m_s * float(np.median(trend2 - trend1))) / 10 ** (-surface_loss_db / 20))
 
@@ -332,6 +324,72 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
         return r, math.nan
     se = math.sqrt((n - 1) / n * float(np.sum((jack - jack.mean()) ** 2)))
     return r, se
+
+
+def _aligned_windows(traces, times_s: np.ndarray, t1: np.ndarray, t2: np.ndarray, ok: np.ndarray,
+                     w: float) -> tuple:
+    """The usable pings' primary and multiple windows moved onto their echo times, and those times.
+
+    The multiple is the clean echo (two specular bounces, little scattered
+    energy about it): its times carry each ping's change, half of it the
+    primary's; the primary's picks only set the common offset.
+    """
+    trend2 = _robust_trend(ok, t2[ok])
+    resid = t2[ok] - trend2
+    mad = 1.4826 * float(np.median(np.abs(resid)))
+    trend2 = np.where(np.abs(resid) <= 3 * max(mad, 1e-6), t2[ok], trend2)  # the picks, unless one went astray
+    trend1 = trend2 / 2 + float(np.median(t1[ok] - t2[ok] / 2))
+    p = np.array([_window(traces[i], times_s, a, w) for i, a in zip(ok, trend1)])
+    m = np.array([_window(traces[i], times_s, b, w) for i, b in zip(ok, trend2)])
+    return p, m, trend1, trend2
+
+
+def coherent_calibration_db(traces, times_s: np.ndarray, primary_s, multiple_s, reflection: float,
+                            n_channels: int, *, bandwidth_hz: float, sound_speed_m_s: float = 1500.0,
+                            half_window_s: float | None = None) -> float:
+    """The constant that makes a patch's image strengths absolute (dB): ``-20 log10(M G)``.
+
+    The vertical beam is the mean of the ``M`` channels' compressed
+    signals; the specular seabed echo on it is ``G R / L1`` (``L1 = c t1``
+    the two-way path, ``R`` the nadir reflection coefficient), so ``G`` is
+    the system's amplitude at 1 m in the trace's units (source level,
+    sensitivity and compression gains).  The image intensity is ``|S|^2``
+    summed over the channels, ``M^2 G^2`` times the scattered intensity at
+    1 m, so ``S = 10 log10 I + 40 log10 R + 2 alpha R - 10 log10 A
+    - 20 log10(M G)`` (:mod:`clbeam.seabed.avo.response`).  ``G`` comes from
+    the coherent mean of the patch's primaries (its energy less what the
+    scattering leaves, times the peak-to-energy ratio of the clean
+    multiple's mean: the same pulse), over ``reflection``.
+
+    Parameters
+    ----------
+    traces, times_s, primary_s, multiple_s, bandwidth_hz, half_window_s
+        As :func:`coherent_reflection`.
+    reflection : float
+        The patch's nadir reflection coefficient (:func:`coherent_reflection`).
+    n_channels : int
+        Channels summed in the image (``M``).
+    sound_speed_m_s : float
+        Water sound speed (m/s), for ``L1``.
+
+    Returns
+    -------
+    float
+        ``calibration_db`` (NaN when the echoes cannot give it).
+    """
+    t1, t2 = np.asarray(primary_s, dtype=np.float64), np.asarray(multiple_s, dtype=np.float64)
+    times_s = np.asarray(times_s, dtype=np.float64)
+    w = half_window_s if half_window_s is not None else 4.0 / max(bandwidth_hz, 1e-30)
+    ok = _usable_pings(len(traces), times_s, t1, t2, bandwidth_hz, w)
+    if ok.size < 3 or not (reflection > 0) or n_channels < 1:
+        return math.nan
+    p, m, trend1, _ = _aligned_windows(traces, times_s, t1, t2, ok, w)
+    e1, e2 = _coherent_energy(p), _coherent_energy(m)
+    if not (e1 > 0 and e2 > 0):
+        return math.nan
+    peak = math.sqrt(e1 * float(np.max(np.abs(m.mean(axis=0)))) ** 2 / e2)
+    g = peak * sound_speed_m_s * float(np.median(trend1)) / reflection
+    return -20 * math.log10(n_channels * g)
 
 
 def _usable_pings(n_traces: int, times_s: np.ndarray, t1: np.ndarray, t2: np.ndarray, bandwidth_hz: float,
@@ -365,8 +423,9 @@ def _robust_trend(index: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str = "opencl", device=None,
-                      progress=None) -> list[tuple[float, float]]:
-    """The nadir reflection coefficient of patches of a ping file: ``(R, standard error)`` per ``(start, stop)``.
+                      progress=None) -> list[tuple[float, float, float]]:
+    """The nadir reflection coefficient of patches of a ping file and the calibration it gives:
+    ``(R, standard error, calibration_db)`` per ``(start, stop)`` (:func:`coherent_calibration_db`).
 
     Each ping's vertical beam (:class:`~clbeam.imaging.vertical_beam.VerticalBeam`)
     gives its echo times (:func:`nadir_echoes`); each patch's coherent mean
@@ -394,13 +453,20 @@ def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str =
                 f"{Path(pings_path).name}: the patches reach ping {stop - 1}, the file has {pings.n_pings} ping(s)")
         beam = VerticalBeam(TraceAxis.for_file(pings), backend=backend, device=device)
         t = beam.axis.times_s
-        traces, t1, t2 = {}, {}, {}
+        traces, t1, t2, m, c = {}, {}, {}, {}, {}
         for i in sorted({i for a, b in ranges for i in range(a, b)}):
             p = pings.ping(i)
-            traces[i] = beam(p).analytic
-            e = nadir_echoes(traces[i], t, sound_speed_m_s=float(p.sound_speed_m_s), bandwidth_hz=bandwidth_hz)
+            trace = beam(p)
+            traces[i], m[i], c[i] = trace.analytic, trace.n_channels_used, float(p.sound_speed_m_s)
+            e = nadir_echoes(traces[i], t, sound_speed_m_s=c[i], bandwidth_hz=bandwidth_hz)
             t1[i], t2[i] = e.primary_s, e.multiple_s
             if progress is not None:
                 progress()
-    return [coherent_reflection([traces[i] for i in range(a, b)], t, [t1[i] for i in range(a, b)],
-                                [t2[i] for i in range(a, b)], bandwidth_hz=bandwidth_hz) for a, b in ranges]
+    out = []
+    for a, b in ranges:
+        tr, p1, p2, mm, cc = ([d[i] for i in range(a, b)] for d in (traces, t1, t2, m, c))
+        r, se = coherent_reflection(tr, t, p1, p2, bandwidth_hz=bandwidth_hz)
+        cal = coherent_calibration_db(tr, t, p1, p2, r, int(np.median(mm)), bandwidth_hz=bandwidth_hz,
+                                      sound_speed_m_s=float(np.median(cc)))
+        out.append((r, se, cal))
+    return out

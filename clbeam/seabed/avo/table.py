@@ -35,8 +35,9 @@ class PatchRecord:
     ``(trend_g, trend_d_db)``; the inversion fields are NaN when no
     inversion was run; ``nadir_reflection`` (and its standard error) is the
     seabed's normal-incidence reflection coefficient of the patch's pings
-    from the nadir echo and its surface multiple
-    (:func:`clbeam.seabed.nadir.patch_reflections`), NaN without the ping file.
+    from the nadir echo and its surface multiple, and ``nadir_calibration_db``
+    the constant its primary echo gives the strengths (reported, not applied;
+    :func:`clbeam.seabed.nadir.patch_reflections`), NaN without the ping file.
     """
 
     ping_start: int
@@ -68,6 +69,7 @@ class PatchRecord:
     misfit_db: float = math.nan
     nadir_reflection: float = math.nan
     nadir_reflection_error: float = math.nan
+    nadir_calibration_db: float = math.nan
 
 
 COLUMNS = tuple(f.name for f in fields(PatchRecord))

@@ -93,7 +93,9 @@ def test_bad_inputs_are_one_line_errors(tmp_path, two_provinces):
 def test_pings_add_each_patchs_nadir_reflection_coefficient_the_closed_form(tmp_path):
     """``--pings``: the patches of a simulated line over a flat mud seabed (Line 1's, without pipelines or
     slope) carry the seabed's normal-incidence reflection coefficient from the nadir echo and its surface
-    multiple, within 5 % of the closed form (m - n) / (m + n) = 0.1011, with a finite standard error."""
+    multiple, within 5 % of the closed form (m - n) / (m + n) = 0.1011, with a finite standard error; and
+    the calibration its primary gives within 1 dB of the simulator's: its replica has amplitude 1 at 1 m
+    (G = 1) and the image sums 64 channels, -20 log10(64) = -36.12 dB."""
     import tomllib
     from importlib.resources import files
 
@@ -121,3 +123,4 @@ def test_pings_add_each_patchs_nadir_reflection_coefficient_the_closed_form(tmp_
     for r in rows:
         assert float(r["nadir_reflection"]) == pytest.approx(r_closed, rel=0.05)
         assert 0 < float(r["nadir_reflection_error"]) < 0.05 * r_closed
+        assert float(r["nadir_calibration_db"]) == pytest.approx(-20 * np.log10(64), abs=1.0)
