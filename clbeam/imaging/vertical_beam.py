@@ -173,6 +173,10 @@ class VerticalBeam:
         OpenCL device (index or name substring).
     engine : object, optional
         An existing engine to use instead of creating one.
+    angle_deg : float
+        Steer the beam this far from nadir (degree, earth frame, starboard
+        positive; 0: the vertical beam), e.g. onto the normal of a sloping
+        seabed.
 
     Notes
     -----
@@ -181,8 +185,9 @@ class VerticalBeam:
     """
 
     def __init__(self, axis: TraceAxis, *, interp: str = "cubic", backend: str = "opencl", device=None,
-                 engine=None):
+                 engine=None, angle_deg: float = 0.0):
         self.axis = axis
+        self.angle_deg = float(angle_deg)
         # trace sample k is at range c t_k / 2: straight rays, whatever profile the file has
         self.options = ImagingOptions(interp=interp, outputs=("sums",), use_svp=False)
         self.engine = engine if engine is not None else get_engine(backend, device=device)
@@ -194,7 +199,7 @@ class VerticalBeam:
         if im is None:
             if len(self._imagers) >= 8:
                 self._imagers.clear()
-            grid = PolarGrid(self.axis.ranges_m(sound_speed_m_s), np.array([0.0]))
+            grid = PolarGrid(self.axis.ranges_m(sound_speed_m_s), np.array([self.angle_deg]))
             im = self._imagers[sound_speed_m_s] = Imager(grid, self.options, engine=self.engine)
         return im
 

@@ -275,7 +275,8 @@ def _window(trace: np.ndarray, times_s: np.ndarray, t_s: float, half_s: float) -
 
 def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, bandwidth_hz: float,
                         half_window_s: float | None = None, absorption_db_per_km: float = 0.0,
-                        surface_loss_db: float = 0.0, sound_speed_m_s: float = 1500.0) -> tuple[float, float]:
+                        surface_loss_db: float = 0.0, sound_speed_m_s: float = 1500.0,
+                        multiple_traces=None) -> tuple[float, float]:
     """A patch's nadir reflection coefficient from the coherent means of its pings' echoes: ``(R, standard error)``.
 
     Over a rough seabed the scattered part of each echo fills the windows
@@ -301,6 +302,9 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
         ``(N,)`` each ping's echo times (:func:`nadir_echoes`; NaN pings are left out).
     bandwidth_hz, half_window_s, absorption_db_per_km, surface_loss_db, sound_speed_m_s
         As :func:`nadir_echoes`.
+    multiple_traces : sequence of numpy.ndarray, optional
+        The traces to take the multiples from (a beam steered onto them over
+        a sloping seabed); default ``traces``.
     """
     t1, t2 = np.asarray(primary_s, dtype=np.float64), np.asarray(multiple_s, dtype=np.float64)
     times_s = np.asarray(times_s, dtype=np.float64)
@@ -308,7 +312,7 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
     ok = _usable_pings(len(traces), times_s, t1, t2, bandwidth_hz, w)
     if ok.size < 3:
         return math.nan, math.nan
-    p, m, trend1, trend2 = _aligned_windows(traces, times_s, t1, t2, ok, w)
+    p, m, trend1, trend2 = _aligned_windows(traces, times_s, t1, t2, ok, w, multiple_traces)
     gain = (np.median(trend2 / trend1) * math.exp(absorption_db_per_km / 1000 / (20 / math.log(10))
             * sound_speed_m_s * float(np.median(trend2 - trend1))) / 10 ** (-surface_loss_db / 20))
 
@@ -327,7 +331,7 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
 
 
 def _aligned_windows(traces, times_s: np.ndarray, t1: np.ndarray, t2: np.ndarray, ok: np.ndarray,
-                     w: float) -> tuple:
+                     w: float, multiple_traces=None) -> tuple:
     """The usable pings' primary and multiple windows moved onto their echo times, and those times.
 
     The multiple is the clean echo (two specular bounces, little scattered
@@ -340,13 +344,14 @@ def _aligned_windows(traces, times_s: np.ndarray, t1: np.ndarray, t2: np.ndarray
     trend2 = np.where(np.abs(resid) <= 3 * max(mad, 1e-6), t2[ok], trend2)  # the picks, unless one went astray
     trend1 = trend2 / 2 + float(np.median(t1[ok] - t2[ok] / 2))
     p = np.array([_window(traces[i], times_s, a, w) for i, a in zip(ok, trend1)])
-    m = np.array([_window(traces[i], times_s, b, w) for i, b in zip(ok, trend2)])
+    mt = traces if multiple_traces is None else multiple_traces
+    m = np.array([_window(mt[i], times_s, b, w) for i, b in zip(ok, trend2)])
     return p, m, trend1, trend2
 
 
 def coherent_calibration_db(traces, times_s: np.ndarray, primary_s, multiple_s, reflection: float,
                             n_channels: int, *, bandwidth_hz: float, sound_speed_m_s: float = 1500.0,
-                            half_window_s: float | None = None) -> float:
+                            half_window_s: float | None = None, multiple_traces=None) -> float:
     """The constant that makes a patch's image strengths absolute (dB): ``-20 log10(M G)``.
 
     The vertical beam is the mean of the ``M`` channels' compressed
@@ -363,7 +368,7 @@ def coherent_calibration_db(traces, times_s: np.ndarray, primary_s, multiple_s, 
 
     Parameters
     ----------
-    traces, times_s, primary_s, multiple_s, bandwidth_hz, half_window_s
+    traces, times_s, primary_s, multiple_s, bandwidth_hz, half_window_s, multiple_traces
         As :func:`coherent_reflection`.
     reflection : float
         The patch's nadir reflection coefficient (:func:`coherent_reflection`).
@@ -383,7 +388,7 @@ def coherent_calibration_db(traces, times_s: np.ndarray, primary_s, multiple_s, 
     ok = _usable_pings(len(traces), times_s, t1, t2, bandwidth_hz, w)
     if ok.size < 3 or not (reflection > 0) or n_channels < 1:
         return math.nan
-    p, m, trend1, _ = _aligned_windows(traces, times_s, t1, t2, ok, w)
+    p, m, trend1, _ = _aligned_windows(traces, times_s, t1, t2, ok, w, multiple_traces)
     e1, e2 = _coherent_energy(p), _coherent_energy(m)
     if not (e1 > 0 and e2 > 0):
         return math.nan
@@ -427,9 +432,12 @@ def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str =
     """The nadir reflection coefficient of patches of a ping file and the calibration it gives:
     ``(R, standard error, calibration_db)`` per ``(start, stop)`` (:func:`coherent_calibration_db`).
 
-    Each ping's vertical beam (:class:`~clbeam.imaging.vertical_beam.VerticalBeam`)
-    gives its echo times (:func:`nadir_echoes`); each patch's coherent mean
-    gives its coefficient (:func:`coherent_reflection`).
+    The patch's first ping fixes the beams that point at its seabed echo
+    and its multiple (:class:`NadirMeter`: over a seabed sloping by ``s``,
+    ``s`` and ``2 s`` off the vertical); each ping's traces on them
+    (:class:`~clbeam.imaging.vertical_beam.VerticalBeam` steered) give its
+    echo times (:func:`nadir_echoes`), and the patch's coherent means its
+    coefficient (:func:`coherent_reflection`).
 
     Parameters
     ----------
@@ -444,29 +452,39 @@ def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str =
     progress : callable, optional
         Called with no argument after each ping.
     """
-    from clbeam.imaging.vertical_beam import TraceAxis, VerticalBeam
     from clbeam.io.pingfile import PingFile
 
     with PingFile(pings_path) as pings:
         stop = max((b for _, b in ranges), default=0)
         require(stop <= pings.n_pings, OptionError,
                 f"{Path(pings_path).name}: the patches reach ping {stop - 1}, the file has {pings.n_pings} ping(s)")
-        beam = VerticalBeam(TraceAxis.for_file(pings), backend=backend, device=device)
-        t = beam.axis.times_s
-        traces, t1, t2, m, c = {}, {}, {}, {}, {}
-        for i in sorted({i for a, b in ranges for i in range(a, b)}):
-            p = pings.ping(i)
-            trace = beam(p)
-            traces[i], m[i], c[i] = trace.analytic, trace.n_channels_used, float(p.sound_speed_m_s)
-            e = nadir_echoes(traces[i], t, sound_speed_m_s=c[i], bandwidth_hz=bandwidth_hz)
-            t1[i], t2[i] = e.primary_s, e.multiple_s
-            if progress is not None:
-                progress()
-    out = []
-    for a, b in ranges:
-        tr, p1, p2, mm, cc = ([d[i] for i in range(a, b)] for d in (traces, t1, t2, m, c))
-        r, se = coherent_reflection(tr, t, p1, p2, bandwidth_hz=bandwidth_hz)
-        cal = coherent_calibration_db(tr, t, p1, p2, r, int(np.median(mm)), bandwidth_hz=bandwidth_hz,
-                                      sound_speed_m_s=float(np.median(cc)))
-        out.append((r, se, cal))
-    return out
+        return [_patch(pings, a, b, bandwidth_hz, backend, device, progress) for a, b in ranges]
+
+
+def _patch(pings, a: int, b: int, bandwidth_hz: float, backend, device, progress) -> tuple:
+    """``(R, standard error, calibration_db)`` of pings ``a..b-1``, each echo on the beam that points at it."""
+    from clbeam.imaging.imager import Imager, ImagingOptions
+    from clbeam.imaging.vertical_beam import TraceAxis, VerticalBeam
+
+    axis = TraceAxis.for_file(pings)
+    vertical = VerticalBeam(axis, backend=backend, device=device)
+    opts = ImagingOptions(interp="cubic", outputs=("sums",), use_svp=False)
+    fan = NadirMeter(lambda g: Imager(g, opts, engine=vertical.engine), vertical)(pings.ping(a), bandwidth_hz=bandwidth_hz)
+    beams = [VerticalBeam(axis, engine=vertical.engine, angle_deg=th)
+             for th in (fan.primary_beam_deg, fan.multiple_beam_deg)]
+    t = axis.times_s
+    rows = []
+    for i in range(a, b):
+        p = pings.ping(i)
+        tp, tm = beams[0](p), beams[1](p)
+        c = float(p.sound_speed_m_s)
+        e1 = nadir_echoes(tp.analytic, t, sound_speed_m_s=c, bandwidth_hz=bandwidth_hz)
+        e2 = nadir_echoes(tm.analytic, t, sound_speed_m_s=c, bandwidth_hz=bandwidth_hz)
+        rows.append((tp.analytic, tm.analytic, e1.primary_s, e2.multiple_s, tp.n_channels_used, c))
+        if progress is not None:
+            progress()
+    tr1, tr2, p1, p2, m, c = (list(v) for v in zip(*rows))
+    r, se = coherent_reflection(tr1, t, p1, p2, bandwidth_hz=bandwidth_hz, multiple_traces=tr2)
+    cal = coherent_calibration_db(tr1, t, p1, p2, r, int(np.median(m)), bandwidth_hz=bandwidth_hz,
+                                  sound_speed_m_s=float(np.median(c)), multiple_traces=tr2)
+    return r, se, cal
