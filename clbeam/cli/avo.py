@@ -11,7 +11,9 @@ attributes and inverted grain size along the track
 
 from __future__ import annotations
 
+import logging
 import time
+from pathlib import Path
 
 from clbeam.cli.options import progress
 from clbeam.constants import (
@@ -25,6 +27,8 @@ from clbeam.errors import OptionError, require
 from clbeam.io.paths import check_output_path
 from clbeam.seabed.avo.stack import DEFAULT_PINGS_PER_PATCH
 
+log = logging.getLogger(__name__)
+
 NAME = "avo"
 HELP = "AVO analysis: angular responses from an image file, patches, attributes, inversion for grain size (SPEC §5)"
 
@@ -36,11 +40,13 @@ def options_from_args(args):
     return ResponseOptions(frequency_hz=args.frequency, bandwidth_hz=args.bandwidth,
                            sound_speed_m_s=args.sound_speed, tx_length_m=args.tx_length,
                            rx_width_m=args.rx_width, absorption_db_per_km=args.absorption,
-                           calibration_db=args.calibration_db)
+                           calibration_db=args.calibration_db or 0.0)
 
 
 def run(args) -> int:
     """Run ``clbeam avo``; returns the exit status."""
+    import dataclasses
+
     from clbeam.seabed.avo.plot import write_figures
     from clbeam.seabed.avo.response import DEFAULT_INCIDENCE_DEG, angular_responses
     from clbeam.seabed.avo.stack import stack_sides
@@ -50,47 +56,79 @@ def run(args) -> int:
     require(args.pings_per_patch >= 1, OptionError,
             f"--pings-per-patch must be >= 1, got {args.pings_per_patch}")
     require(args.ping_spacing > 0, OptionError, f"--ping-spacing must be > 0 m, got {args.ping_spacing}")
+    require(not (args.pings and args.no_nadir), OptionError, "--pings and --no-nadir contradict each other")
     out = check_output_path(args.output, args.images, what="AVO table")
     opts = options_from_args(args)
     resp = angular_responses(args.images, DEFAULT_INCIDENCE_DEG, opts, ping_spacing_m=args.ping_spacing)
     n = resp.port_db.shape[0]
     patches = stack_sides(resp.incidence_deg, resp.port_db, resp.starboard_db,
                           pings_per_patch=args.pings_per_patch, along_track_m=resp.along_track_m)
-    if args.no_invert:
-        rows = survey_records(patches, invert=False)
-    else:
-        rows = survey_records(patches, frequency_hz=opts.frequency_hz,
-                              sound_speed_water_m_s=opts.sound_speed_m_s)
-    if args.pings:
-        rows = _with_nadir_reflection(rows, args)
+    pings = args.pings or (None if args.no_nadir else _pings_beside(args.images))
+    nadir = _nadir_reflections(patches, pings, args) if pings else {}
+    cal = _calibration(nadir, args)
+    if cal.source == "nadir":  # the option's calibration is in the strengths already
+        patches = [dataclasses.replace(p, strength_db=p.strength_db + cal.db) for p in patches]
+    rows = survey_records(patches, frequency_hz=opts.frequency_hz, invert=not args.no_invert, nadir=nadir,
+                          calibration=cal, sound_speed_water_m_s=opts.sound_speed_m_s)
     write_csv(out, rows)
     figs = write_figures(args.figures, patches, rows, frequency_hz=opts.frequency_hz,
                          sound_speed_m_s=opts.sound_speed_m_s) if args.figures else []
     if not args.quiet:
         partial = "" if n % args.pings_per_patch == 0 else \
             f" (last patch of {n % args.pings_per_patch} ping(s))"
-        print(f"{n} ping(s) -> {len(patches)} patches{partial} -> {out}"
+        print(f"{n} ping(s) -> {len(patches)} patches{partial}; {_calibration_text(cal)} -> {out}"
               + (f"; {len(figs)} figures -> {args.figures}" if figs else "")
               + f" in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
-def _with_nadir_reflection(rows: list, args) -> list:
-    """The rows with each patch's nadir reflection coefficient from the ping file ``--pings``."""
-    import dataclasses
+def _pings_beside(images) -> Path | None:
+    """The ping file the images were made from (their ``source_file`` attribute), when it lies beside them."""
+    from clbeam.io.images import open_images
 
+    with open_images(images) as ds:
+        name = ds.attrs.get("source_file")
+    path = Path(images).parent / str(name) if name else None
+    if path is None or not path.is_file():
+        return None
+    log.info("nadir calibration from %s, the ping file beside the images (--no-nadir to skip)", path.name)
+    return path
+
+
+def _nadir_reflections(patches: list, pings, args) -> dict:
+    """``(ping_start, ping_stop) -> PatchNadir`` of every patch, from the ping file ``pings``."""
     from clbeam.seabed.nadir import patch_reflections
 
-    ranges = sorted({(r.ping_start, r.ping_stop) for r in rows})
+    ranges = sorted({(p.ping_start, p.ping_stop) for p in patches})
     bar = progress(None, total=sum(b - a for a, b in ranges), desc="nadir", quiet=args.quiet)
     try:
-        found = dict(zip(ranges, patch_reflections(args.pings, ranges, bandwidth_hz=args.bandwidth,
-                                                    progress=bar.update)))
+        return dict(zip(ranges, patch_reflections(pings, ranges, bandwidth_hz=args.bandwidth,
+                                                  progress=bar.update)))
     finally:
         bar.close()
-    return [dataclasses.replace(r, nadir_reflection=found[r.ping_start, r.ping_stop][0],
-                                nadir_reflection_error=found[r.ping_start, r.ping_stop][1],
-                                nadir_calibration_db=found[r.ping_start, r.ping_stop][2]) for r in rows]
+
+
+def _calibration(nadir: dict, args):
+    """The calibration to apply: ``--calibration-db``, else the patches' nadir estimates combined, else none."""
+    from clbeam.seabed.avo.calibration import SYSTEMATIC_ERROR_DB, Calibration, survey_calibration
+
+    if args.calibration_db is not None:  # taken good to the nadir estimate's floor in the joint inversion
+        return Calibration(args.calibration_db, SYSTEMATIC_ERROR_DB, "option")
+    found = list(nadir.values())
+    cal = survey_calibration([f.calibration_db for f in found], [f.calibration_error_db for f in found])
+    if cal is None and found:
+        log.warning("no patch gave a nadir calibration (no multiple above the noise, or beyond the record): "
+                    "strengths stay relative")
+    return cal or Calibration(0.0, float("nan"), "none")
+
+
+def _calibration_text(cal) -> str:
+    """One phrase for the summary line."""
+    if cal.source == "nadir":
+        return f"calibration {cal.db:+.1f} +- {cal.error_db:.1f} dB from {cal.n_patches} patches' nadir echoes"
+    if cal.source == "option":
+        return f"calibration {cal.db:+.1f} dB (--calibration-db)"
+    return "strengths relative (no calibration)"
 
 
 def add_arguments(p) -> None:
@@ -112,13 +150,18 @@ def add_arguments(p) -> None:
                    help=f"across-track width of the receive array (m, default {SBP29_ARRAY_WIDTH_M:g})")
     p.add_argument("--absorption", type=float, default=None, metavar="DB/KM",
                    help="water absorption (dB/km; default Francois-Garrison at the band centre, 10 °C, 35 PSU)")
-    p.add_argument("--calibration-db", type=float, default=0.0, metavar="DB",
-                   help="added to every strength (dB; default 0: strengths relative to an unknown constant)")
+    p.add_argument("--calibration-db", type=float, default=None, metavar="DB",
+                   help="added to every strength (dB); default: from the nadir echoes with --pings, "
+                        "else 0 (strengths relative to an unknown constant)")
     p.add_argument("--ping-spacing", type=float, default=1.0, metavar="M",
                    help="along-track ping spacing used when the file has no navigation (m, default 1)")
     p.add_argument("--no-invert", action="store_true", help="attributes only, no model inversion")
+    p.add_argument("--no-nadir", action="store_true",
+                   help="no nadir reflection coefficient or calibration, even with the images' ping file beside them")
     p.add_argument("--pings", default=None, metavar="PINGS.nc",
-                   help="the ping file the images were made from: adds each patch's nadir reflection coefficient "
-                        "from the seabed echo and its surface multiple, and the calibration it gives (reported, "
-                        "not applied; docs/avo.md)")
+                   help="the ping file the images were made from (default: their source file, when it lies beside "
+                        "them): each patch's nadir reflection coefficient "
+                        "from the seabed echo and its surface multiple, the calibration the patches give together "
+                        "(applied unless --calibration-db), and a joint inversion of both with the response "
+                        "(docs/avo.md)")
     p.add_argument("--figures", default=None, metavar="DIR", help="also draw the AVO figures (PNG) into DIR")

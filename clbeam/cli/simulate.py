@@ -13,7 +13,8 @@ def add_arguments(p) -> None:
     """The arguments of ``clbeam simulate``."""
     p.add_argument("-o", "--output", required=True, metavar="PINGS.nc", help="ping file to write (.nc or .zarr)")
     p.add_argument("--scene", default="line1", metavar="NAME|FILE",
-                   help="built-in scene (line1, line4, point, avo2, svp1km) or a TOML file (default line1)")
+                   help="built-in scene (line1, line4, point, avo2, avo3, svp1km, cross, boulders, clutter) "
+                        "or a TOML file (default line1)")
     p.add_argument("--pings", type=int, default=None, help="number of pings (default: the scene's)")
     p.add_argument("--max-range", type=float, default=None, metavar="M", help="largest recorded slant range (m)")
     p.add_argument("--seed", type=int, default=0, help="random seed of seabed and noise (default 0)")

@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -218,28 +219,52 @@ class NadirMeter:
         self.angles = np.arange(-fan_deg, fan_deg + fan_step_deg / 2, fan_step_deg)
 
     def __call__(self, ping, *, bandwidth_hz: float, **kwargs) -> NadirEchoes:
-        """:func:`nadir_echoes` of ``ping`` with each echo's amplitude from its own beam."""
-        from clbeam.model.grid import PolarGrid
+        """:func:`nadir_echoes` of ``ping`` with each echo's amplitude from its own beam.
 
+        The multiple, two specular bounces and little scattered energy about
+        it, fixes the direction: its fan's energy peak (refined by a parabola
+        through the largest beam and its neighbours) gives ``2 s``, and the
+        seabed echo is measured at ``s``.  The seabed echo's own fan would
+        not do: over a rough seabed the scattered energy about nadir moves its
+        peak by a beam or two (a 1 degree pick on a flat silt seabed read R
+        18 % high)."""
         c = float(ping.sound_speed_m_s)
         t = self.vertical.axis.times_s
         first = nadir_echoes(self.vertical(ping).analytic, t, sound_speed_m_s=c, bandwidth_hz=bandwidth_hz, **kwargs)
         if not math.isfinite(first.reflection):
             return first
         w = kwargs.get("half_window_s") or 4.0 / bandwidth_hz
-        step = c * float(t[1] - t[0]) / 2
-        r1, r2 = c * first.primary_s / 2, c * first.multiple_s / 2
-        amps = []
-        for r in (r1, r2):  # the same +-w in two-way time as nadir_echoes
-            ranges = np.arange(r - c * w / 2, r + c * w / 2 + step / 2, step)
-            img = self.imager_factory(PolarGrid(ranges, self.angles)).image(ping)
-            s, m = np.asarray(img.sums.s), np.asarray(img.sums.m)
-            power = np.where(m > 0, np.abs(s) ** 2 / np.maximum(m, 1) ** 2, 0.0)
-            energy = power.sum(axis=1) * 2 * step / c
-            amps.append((math.sqrt(float(energy.max())), float(self.angles[np.argmax(energy)])))
-        (a1, th1), (a2, th2) = amps
+        fan = self._energies(ping, c * first.multiple_s / 2, self.angles, w, c)
+        th2 = _refined_peak(self.angles, fan)
+        e1, e2 = (float(self._energies(ping, c * ts / 2, np.array([th]), w, c)[0])
+                  for ts, th in ((first.primary_s, th2 / 2), (first.multiple_s, th2)))
         scale = first.reflection / (first.multiple_amplitude / first.primary_amplitude)
-        return NadirEchoes(first.primary_s, first.multiple_s, a1, a2, a2 / a1 * scale, "", th1, th2)
+        return NadirEchoes(first.primary_s, first.multiple_s, math.sqrt(e1), math.sqrt(e2),
+                           math.sqrt(e2 / e1) * scale if e1 > 0 else math.nan, "", th2 / 2, th2)
+
+    def _energies(self, ping, range_m: float, angles: np.ndarray, w: float, c: float) -> np.ndarray:
+        """Energy of the echo at ``range_m`` on beams ``angles`` (the same ``+-w`` in two-way time as
+        :func:`nadir_echoes`)."""
+        from clbeam.model.grid import PolarGrid
+
+        step = c * float(self.vertical.axis.times_s[1] - self.vertical.axis.times_s[0]) / 2
+        ranges = np.arange(range_m - c * w / 2, range_m + c * w / 2 + step / 2, step)
+        img = self.imager_factory(PolarGrid(ranges, angles)).image(ping)
+        s, m = np.asarray(img.sums.s), np.asarray(img.sums.m)
+        power = np.where(m > 0, np.abs(s) ** 2 / np.maximum(m, 1) ** 2, 0.0)
+        return power.sum(axis=1) * 2 * step / c
+
+
+def _refined_peak(angles: np.ndarray, energy: np.ndarray) -> float:
+    """Angle (degree) of the energy's peak: the vertex of the parabola through the largest beam and its neighbours
+    (the largest beam itself at the fan's edge)."""
+    k = int(np.argmax(energy))
+    if not 0 < k < energy.size - 1:
+        return float(angles[k])
+    a, b, c = energy[k - 1], energy[k], energy[k + 1]
+    den = a - 2 * b + c
+    frac = 0.5 * (a - c) / den if den < 0 else 0.0
+    return float(angles[k] + np.clip(frac, -0.5, 0.5) * (angles[1] - angles[0]))
 
 
 def patch_reflection(values) -> tuple[float, float, int]:
@@ -306,28 +331,101 @@ def coherent_reflection(traces, times_s: np.ndarray, primary_s, multiple_s, *, b
         The traces to take the multiples from (a beam steered onto them over
         a sloping seabed); default ``traces``.
     """
+    windows = _patch_windows(traces, times_s, primary_s, multiple_s, bandwidth_hz, half_window_s,
+                             multiple_traces)
+    if windows is None:
+        return math.nan, math.nan
+    p, m, trend1, trend2 = windows
+    gain = _path_gain(trend1, trend2, absorption_db_per_km, surface_loss_db, sound_speed_m_s)
+    return _jackknife(lambda rows: _reflection(p[rows], m[rows], gain), p.shape[0])
+
+
+def coherent_calibration_db(traces, times_s: np.ndarray, primary_s, multiple_s, n_channels: int, *,
+                            bandwidth_hz: float, sound_speed_m_s: float = 1500.0, half_window_s: float | None = None,
+                            absorption_db_per_km: float = 0.0, surface_loss_db: float = 0.0,
+                            multiple_traces=None) -> tuple[float, float]:
+    """The constant that makes a patch's image strengths absolute: ``(-20 log10(M G), standard error)`` (dB).
+
+    The vertical beam is the mean of the ``M`` channels' compressed
+    signals; the specular seabed echo on it is ``G R / L1`` (``L1 = c t1``
+    the two-way path, ``R`` the nadir reflection coefficient), so ``G`` is
+    the system's amplitude at 1 m in the trace's units (source level,
+    sensitivity and compression gains).  The image intensity is ``|S|^2``
+    summed over the channels, ``M^2 G^2`` times the scattered intensity at
+    1 m, so ``S = 10 log10 I + 40 log10 R + 2 alpha R - 10 log10 A
+    - 20 log10(M G)`` (:mod:`clbeam.seabed.avo.response`).  ``G`` comes from
+    the coherent mean of the patch's primaries (its energy less what the
+    scattering leaves, times the peak-to-energy ratio of the clean
+    multiple's mean: the same pulse), over ``R`` of the same pings
+    (:func:`coherent_reflection`).  An error in the primary's amplitude
+    enters twice (once through ``R``); the standard error is the
+    jackknife's of the two together.
+
+    Parameters
+    ----------
+    traces, times_s, primary_s, multiple_s, bandwidth_hz, half_window_s, multiple_traces
+        As :func:`coherent_reflection`; so are ``absorption_db_per_km`` and ``surface_loss_db``.
+    n_channels : int
+        Channels summed in the image (``M``).
+    sound_speed_m_s : float
+        Water sound speed (m/s), for ``L1``.
+
+    Returns
+    -------
+    tuple of float
+        ``calibration_db`` and its standard error (NaN when the echoes cannot give them).
+    """
+    windows = _patch_windows(traces, times_s, primary_s, multiple_s, bandwidth_hz, half_window_s,
+                             multiple_traces)
+    if windows is None or n_channels < 1:
+        return math.nan, math.nan
+    p, m, trend1, trend2 = windows
+    gain = _path_gain(trend1, trend2, absorption_db_per_km, surface_loss_db, sound_speed_m_s)
+    l1 = sound_speed_m_s * float(np.median(trend1))
+
+    def estimate(rows):
+        r = _reflection(p[rows], m[rows], gain)
+        e1, e2 = _coherent_energy(p[rows]), _coherent_energy(m[rows])
+        if not (r > 0 and e1 > 0 and e2 > 0):
+            return math.nan
+        peak = math.sqrt(e1 * float(np.max(np.abs(m[rows].mean(axis=0)))) ** 2 / e2)
+        return -20 * math.log10(n_channels * peak * l1 / r)
+    return _jackknife(estimate, p.shape[0])
+
+
+def _patch_windows(traces, times_s, primary_s, multiple_s, bandwidth_hz, half_window_s, multiple_traces):
+    """:func:`_aligned_windows` of the usable pings, or None when fewer than 3 are."""
     t1, t2 = np.asarray(primary_s, dtype=np.float64), np.asarray(multiple_s, dtype=np.float64)
     times_s = np.asarray(times_s, dtype=np.float64)
     w = half_window_s if half_window_s is not None else 4.0 / max(bandwidth_hz, 1e-30)
     ok = _usable_pings(len(traces), times_s, t1, t2, bandwidth_hz, w)
     if ok.size < 3:
-        return math.nan, math.nan
-    p, m, trend1, trend2 = _aligned_windows(traces, times_s, t1, t2, ok, w, multiple_traces)
-    gain = (np.median(trend2 / trend1) * math.exp(absorption_db_per_km / 1000 / (20 / math.log(10))
-            * sound_speed_m_s * float(np.median(trend2 - trend1))) / 10 ** (-surface_loss_db / 20))
+        return None
+    return _aligned_windows(traces, times_s, t1, t2, ok, w, multiple_traces)
 
-    def estimate(rows):
-        e = [max(_coherent_energy(x[rows]), 0.0) for x in (p, m)]
-        return math.sqrt(e[1] / e[0]) * gain if e[0] > 0 else math.nan
 
-    r = estimate(np.arange(ok.size))
-    jack = np.array([estimate(np.delete(np.arange(ok.size), j)) for j in range(ok.size)])
+def _path_gain(trend1, trend2, absorption_db_per_km: float, surface_loss_db: float, c: float) -> float:
+    """``(t2 / t1) exp(alpha c (t2 - t1)) / |Rs|``: what turns the echoes' amplitude ratio into ``R``."""
+    alpha_np_m = absorption_db_per_km / 1000 / (20 / math.log(10))
+    return (float(np.median(trend2 / trend1)) * math.exp(alpha_np_m * c * float(np.median(trend2 - trend1)))
+            / 10 ** (-surface_loss_db / 20))
+
+
+def _reflection(p: np.ndarray, m: np.ndarray, gain: float) -> float:
+    """``R`` of aligned primary and multiple windows: the ratio of their coherent amplitudes times the path gain."""
+    e1, e2 = max(_coherent_energy(p), 0.0), max(_coherent_energy(m), 0.0)
+    return math.sqrt(e2 / e1) * gain if e1 > 0 else math.nan
+
+
+def _jackknife(estimate, n: int) -> tuple[float, float]:
+    """``estimate`` of all ``n`` rows and its jackknife standard error (leave one row out; NaN below 2)."""
+    full = estimate(np.arange(n))
+    jack = np.array([estimate(np.delete(np.arange(n), j)) for j in range(n)])
     jack = jack[np.isfinite(jack)]
-    n = jack.size
-    if n < 2:
-        return r, math.nan
-    se = math.sqrt((n - 1) / n * float(np.sum((jack - jack.mean()) ** 2)))
-    return r, se
+    k = jack.size
+    if k < 2:
+        return full, math.nan
+    return full, math.sqrt((k - 1) / k * float(np.sum((jack - jack.mean()) ** 2)))
 
 
 def _aligned_windows(traces, times_s: np.ndarray, t1: np.ndarray, t2: np.ndarray, ok: np.ndarray,
@@ -347,54 +445,6 @@ def _aligned_windows(traces, times_s: np.ndarray, t1: np.ndarray, t2: np.ndarray
     mt = traces if multiple_traces is None else multiple_traces
     m = np.array([_window(mt[i], times_s, b, w) for i, b in zip(ok, trend2)])
     return p, m, trend1, trend2
-
-
-def coherent_calibration_db(traces, times_s: np.ndarray, primary_s, multiple_s, reflection: float,
-                            n_channels: int, *, bandwidth_hz: float, sound_speed_m_s: float = 1500.0,
-                            half_window_s: float | None = None, multiple_traces=None) -> float:
-    """The constant that makes a patch's image strengths absolute (dB): ``-20 log10(M G)``.
-
-    The vertical beam is the mean of the ``M`` channels' compressed
-    signals; the specular seabed echo on it is ``G R / L1`` (``L1 = c t1``
-    the two-way path, ``R`` the nadir reflection coefficient), so ``G`` is
-    the system's amplitude at 1 m in the trace's units (source level,
-    sensitivity and compression gains).  The image intensity is ``|S|^2``
-    summed over the channels, ``M^2 G^2`` times the scattered intensity at
-    1 m, so ``S = 10 log10 I + 40 log10 R + 2 alpha R - 10 log10 A
-    - 20 log10(M G)`` (:mod:`clbeam.seabed.avo.response`).  ``G`` comes from
-    the coherent mean of the patch's primaries (its energy less what the
-    scattering leaves, times the peak-to-energy ratio of the clean
-    multiple's mean: the same pulse), over ``reflection``.
-
-    Parameters
-    ----------
-    traces, times_s, primary_s, multiple_s, bandwidth_hz, half_window_s, multiple_traces
-        As :func:`coherent_reflection`.
-    reflection : float
-        The patch's nadir reflection coefficient (:func:`coherent_reflection`).
-    n_channels : int
-        Channels summed in the image (``M``).
-    sound_speed_m_s : float
-        Water sound speed (m/s), for ``L1``.
-
-    Returns
-    -------
-    float
-        ``calibration_db`` (NaN when the echoes cannot give it).
-    """
-    t1, t2 = np.asarray(primary_s, dtype=np.float64), np.asarray(multiple_s, dtype=np.float64)
-    times_s = np.asarray(times_s, dtype=np.float64)
-    w = half_window_s if half_window_s is not None else 4.0 / max(bandwidth_hz, 1e-30)
-    ok = _usable_pings(len(traces), times_s, t1, t2, bandwidth_hz, w)
-    if ok.size < 3 or not (reflection > 0) or n_channels < 1:
-        return math.nan
-    p, m, trend1, _ = _aligned_windows(traces, times_s, t1, t2, ok, w, multiple_traces)
-    e1, e2 = _coherent_energy(p), _coherent_energy(m)
-    if not (e1 > 0 and e2 > 0):
-        return math.nan
-    peak = math.sqrt(e1 * float(np.max(np.abs(m.mean(axis=0)))) ** 2 / e2)
-    g = peak * sound_speed_m_s * float(np.median(trend1)) / reflection
-    return -20 * math.log10(n_channels * g)
 
 
 def _usable_pings(n_traces: int, times_s: np.ndarray, t1: np.ndarray, t2: np.ndarray, bandwidth_hz: float,
@@ -427,10 +477,19 @@ def _robust_trend(index: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.polyval(fit, index)
 
 
+class PatchNadir(NamedTuple):
+    """A patch's nadir reflection coefficient and the calibration it gives, with their standard errors."""
+
+    reflection: float
+    reflection_error: float
+    calibration_db: float
+    calibration_error_db: float
+
+
 def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str = "opencl", device=None,
-                      progress=None) -> list[tuple[float, float, float]]:
-    """The nadir reflection coefficient of patches of a ping file and the calibration it gives:
-    ``(R, standard error, calibration_db)`` per ``(start, stop)`` (:func:`coherent_calibration_db`).
+                      progress=None) -> list[PatchNadir]:
+    """The nadir reflection coefficient of patches of a ping file and the calibration it gives, one
+    :class:`PatchNadir` per ``(start, stop)`` (:func:`coherent_reflection`, :func:`coherent_calibration_db`).
 
     The patch's first ping fixes the beams that point at its seabed echo
     and its multiple (:class:`NadirMeter`: over a seabed sloping by ``s``,
@@ -461,8 +520,8 @@ def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str =
         return [_patch(pings, a, b, bandwidth_hz, backend, device, progress) for a, b in ranges]
 
 
-def _patch(pings, a: int, b: int, bandwidth_hz: float, backend, device, progress) -> tuple:
-    """``(R, standard error, calibration_db)`` of pings ``a..b-1``, each echo on the beam that points at it."""
+def _patch(pings, a: int, b: int, bandwidth_hz: float, backend, device, progress) -> PatchNadir:
+    """The :class:`PatchNadir` of pings ``a..b-1``, each echo on the beam that points at it."""
     from clbeam.imaging.imager import Imager, ImagingOptions
     from clbeam.imaging.vertical_beam import TraceAxis, VerticalBeam
 
@@ -485,6 +544,6 @@ def _patch(pings, a: int, b: int, bandwidth_hz: float, backend, device, progress
             progress()
     tr1, tr2, p1, p2, m, c = (list(v) for v in zip(*rows))
     r, se = coherent_reflection(tr1, t, p1, p2, bandwidth_hz=bandwidth_hz, multiple_traces=tr2)
-    cal = coherent_calibration_db(tr1, t, p1, p2, r, int(np.median(m)), bandwidth_hz=bandwidth_hz,
-                                  sound_speed_m_s=float(np.median(c)), multiple_traces=tr2)
-    return r, se, cal
+    cal, cal_se = coherent_calibration_db(tr1, t, p1, p2, int(np.median(m)), bandwidth_hz=bandwidth_hz,
+                                          sound_speed_m_s=float(np.median(c)), multiple_traces=tr2)
+    return PatchNadir(r, se, cal, cal_se)

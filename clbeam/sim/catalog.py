@@ -152,7 +152,7 @@ def load_scene(source: str | os.PathLike | Scene, *, pings: int | None = None, m
     Parameters
     ----------
     source : str, path-like or Scene
-        ``"line1"``, ``"line4"``, ``"point"``, ``"avo2"``, ``"svp1km"`` (see :func:`list_scenes`), a
+        ``"line1"``, ``"line4"``, ``"point"``, ``"avo2"``, ``"avo3"``, ``"svp1km"`` (see :func:`list_scenes`), a
         ``.toml`` file, or a :class:`~clbeam.sim.scene.Scene` (overrides applied to it).
     pings : int, optional
         Number of pings on the line.

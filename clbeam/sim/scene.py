@@ -318,6 +318,12 @@ class Seabed:
         model for their grain size (:class:`Province`); they need a
         ``[seabed.scattering]`` table for the scatterer density and jitter.
         Empty: the ``sin^m`` law everywhere.
+    province_impedance : bool
+        The nadir specular echo and its multiples reflect with the
+        impedance of the province under the ship (the TR 9407 density and
+        sound-speed ratios of its grain size, :mod:`clbeam.seabed.avo.sediment`)
+        in place of ``density_ratio`` and ``sound_speed_ratio``; needs
+        provinces and ``specular_model = "impedance"``.
     """
 
     depth_m: float = 230.0
@@ -333,6 +339,7 @@ class Seabed:
     multiple: bool = True
     scattering: Scattering | None = None
     province: tuple[Province, ...] = ()
+    province_impedance: bool = False
 
     def __post_init__(self):
         require(self.depth_m > 0, OptionError, f"seabed.depth_m must be > 0 m, got {self.depth_m}")
@@ -352,6 +359,9 @@ class Seabed:
                 f"seabed.province from_along_track_m must increase, got {starts}")
         require(not self.province or self.scattering is not None, OptionError,
                 "seabed.province needs a [seabed.scattering] table (scatterer density and jitter)")
+        require(not self.province_impedance or (self.province and self.specular_model == "impedance"),
+                OptionError, "seabed.province_impedance needs [[seabed.province]] tables and "
+                             "specular_model = \"impedance\"")
 
 
 @dataclass(frozen=True)

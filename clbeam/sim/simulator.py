@@ -121,7 +121,7 @@ from clbeam.sim.scene import (
     target_kind,
 )
 from clbeam.sim.seabed import Provinces, field_echo, scatterer_fields
-from clbeam.sim.specular import forward_seabed, forward_specular_response, specular_echoes
+from clbeam.sim.specular import forward_seabed, forward_specular_response, nadir_reflection, specular_echoes
 from clbeam.sim.targets import line_crossing, line_echo, line_points, point_echo, target_world
 from clbeam.sim.truth import TRUTH_KEYS, TRUTH_VARIABLES, image_position, ping_truth, truth_dataset
 
@@ -451,11 +451,13 @@ class Simulator:
     def _truth_dataset(self, truth: list) -> xr.Dataset:
         """The simulator's truth per ping (targets, seabed, province) in the earth frame."""
         sc = self.scene
-        mz = None
+        mz = r = None
         if self.provinces is not None:
-            mz = np.array([self.province_mz(float(i) * sc.survey.step_m) for i in self.indices])
+            along = [float(i) * sc.survey.step_m for i in self.indices]
+            mz = np.array([self.province_mz(a) for a in along])
+            r = np.array([nadir_reflection(sc, a) for a in along])
         return truth_dataset(truth, target_names=[t.name for t in sc.targets], pings=self.indices,
-                             noise_std=self.noise_std, province_mz=mz)
+                             noise_std=self.noise_std, province_mz=mz, nadir_reflection=r)
 
 
 def simulate(scene, *, pings=None, seed: int = 0, progress: bool = False) -> xr.Dataset:

@@ -16,6 +16,7 @@ the sediment's attenuation and the interfaces' roughness loss).  With a
 
 from __future__ import annotations
 
+import bisect
 import logging
 import math
 from typing import NamedTuple
@@ -97,11 +98,12 @@ def specular_echoes(prop: Propagation, g: PingGeometry) -> list[Echoes]:
     if sb.specular_model == "forward":
         return [image_source(prop, g, p.label, p.planes, 1.0, response=_forward_factor(prop, p.rows, p.sign),
                              names=p.names) for p in paths]
-    v1 = float(reflection_coefficient(np.pi / 2, sb.density_ratio, sb.sound_speed_ratio))
+    rho, nu = seabed_ratios(sc, g.along_m)
+    v1 = float(reflection_coefficient(np.pi / 2, rho, nu))
     v = [v1]
     d = 0.0
     if sub is not None:
-        z1 = sb.density_ratio * sb.sound_speed_ratio
+        z1 = rho * nu
         z2 = sub.density_ratio * sub.sound_speed_ratio
         v.append((z2 - z1) / (z2 + z1) * (1 - v1 * v1))
         d = sub.depth_below_seabed_m
@@ -114,6 +116,26 @@ def specular_echoes(prop: Propagation, g: PingGeometry) -> list[Echoes]:
         b = np.array([prop.alpha_np * path_m]) if path_m > 0 else None
         sets.append(image_source(prop, g, p.label, p.planes, amp, b_s=b, names=p.names))
     return sets
+
+
+def seabed_ratios(scene: Scene, along_m: float) -> tuple[float, float]:
+    """Density and sound-speed ratios of the seabed that reflects the nadir echoes of a ping ``along_m`` (m)
+    along the track: the scene's, or with ``seabed.province_impedance`` the TR 9407 ratios of the grain size
+    of the province there."""
+    sb = scene.seabed
+    if not sb.province_impedance:
+        return sb.density_ratio, sb.sound_speed_ratio
+    from clbeam.seabed.avo.sediment import density_ratio, sound_speed_ratio
+
+    starts = [p.from_along_track_m for p in sb.province]
+    mz = sb.province[max(bisect.bisect_right(starts, along_m) - 1, 0)].mz
+    return density_ratio(mz), sound_speed_ratio(mz)
+
+
+def nadir_reflection(scene: Scene, along_m: float) -> float:
+    """The seabed's normal-incidence reflection coefficient under a ping ``along_m`` (m) along the track
+    (impedance model, :func:`seabed_ratios`)."""
+    return float(reflection_coefficient(np.pi / 2, *seabed_ratios(scene, along_m)))
 
 
 def _forward_factor(prop: Propagation, rows: tuple, sign: float):

@@ -174,7 +174,7 @@ def _traced_image(prop: Propagation, g: PingGeometry, t, nearest: np.ndarray) ->
 
 
 def truth_dataset(truth: list, *, target_names: list[str], pings: np.ndarray, noise_std: float,
-                  province_mz: np.ndarray | None = None) -> xr.Dataset:
+                  province_mz: np.ndarray | None = None, nadir_reflection: np.ndarray | None = None) -> xr.Dataset:
     """The truth of the prepared pings as dataset variables.
 
     Parameters
@@ -189,13 +189,15 @@ def truth_dataset(truth: list, *, target_names: list[str], pings: np.ndarray, no
         Standard deviation of the added noise per sample.
     province_mz : numpy.ndarray, optional
         Grain size (phi) of the seabed province under the ship per ping.
+    nadir_reflection : numpy.ndarray, optional
+        The seabed's normal-incidence reflection coefficient under the ship per ping.
 
     Returns
     -------
     xarray.Dataset
         ``truth_target_<key>(ping, target)`` (:data:`TRUTH_VARIABLES`),
         ``truth_seabed_z(ping)``, ``noise_std`` and, with provinces,
-        ``truth_province_mz(ping)``; earth frame, units in the attributes.
+        ``truth_province_mz(ping)`` and ``truth_nadir_reflection(ping)``; earth frame, units in the attributes.
     """
     n_t = len(target_names)
     tt = {k: np.array([tr["target"][k] for tr in truth], dtype=np.float64).reshape(len(truth), n_t)
@@ -208,6 +210,9 @@ def truth_dataset(truth: list, *, target_names: list[str], pings: np.ndarray, no
     if province_mz is not None:
         data["truth_province_mz"] = (("ping",), province_mz, {"units": "phi", "long_name":
                                                               "grain size of the seabed province under the ship"})
+    if nadir_reflection is not None:
+        data["truth_nadir_reflection"] = (("ping",), nadir_reflection, {
+            "units": "1", "long_name": "normal-incidence reflection coefficient of the seabed under the ship"})
     coords = {"ping": ("ping", pings),
               "target": ("target", np.array(target_names, dtype=object), {"long_name": "target name"})}
     return xr.Dataset(data, coords=coords)

@@ -106,3 +106,38 @@ def test_provinces_in_scene_files_truth_and_errors():
         load_scene("avo2", overrides={"seabed.scattering": None})
     with pytest.raises(OptionError, match="unknown scene key 'seabed.province\\[0\\].grain'"):
         load_scene("avo2", overrides={"seabed.province": [{"grain": 1.0}]})
+
+
+def closed_form_r(mz: float) -> float:
+    """Normal-incidence coefficient ``(rho nu - 1) / (rho nu + 1)`` of the TR 9407 regressions' ratios."""
+    from clbeam.seabed.avo.sediment import density_ratio, sound_speed_ratio
+
+    z = density_ratio(mz) * sound_speed_ratio(mz)
+    return (z - 1) / (z + 1)
+
+
+def test_nadir_echo_and_multiple_reflect_with_each_provinces_impedance():
+    """avo2 without motion, noise or (almost) scatterers: on the mean of the channels (the vertical beam,
+    compressed independently of clbeam's imager) the seabed echo's peak times its path is ``R`` of the
+    province under the ship (the replica's amplitude is 1 at 1 m), and the multiple's over the primary's,
+    times their paths' ratio, is ``-R`` (seabed, surface -1, seabed): sand's 0.370 and silt's 0.063."""
+    scene = load_scene("avo2", snr_db=None, overrides={
+        "motion.roll_amplitude_deg": 0.0, "motion.pitch_amplitude_deg": 0.0, "motion.heave_amplitude_m": 0.0,
+        "seabed.scattering.per_cell": 1e-4})
+    ds = simulate(scene, pings=[0, 39])
+    expected = [closed_form_r(1.5), closed_form_r(6.0)]
+    np.testing.assert_allclose(ds["truth_nadir_reflection"].values, expected, rtol=1e-9)
+    l1, l2 = 2 * H, 2 * H + 2 * (H + 5.0)  # unfolded paths: transducers 5 m below the surface
+    for i, r in enumerate(expected):
+        x = ds["samples"].values[i].astype(np.float64).mean(axis=0)
+        y = scipy.signal.fftconvolve(x, REPLICA[::-1], mode="full")[REPLICA.size - 1:] / (REPLICA @ REPLICA)
+        a = scipy.signal.hilbert(y)
+        k1, k2 = (int(round((lp / C - float(ds["t0"].values[i])) * FS)) for lp in (l1, l2))
+        p1 = a[k1 - 40:k1 + 40][np.argmax(np.abs(a[k1 - 40:k1 + 40]))]
+        p2 = a[k2 - 40:k2 + 40][np.argmax(np.abs(a[k2 - 40:k2 + 40]))]
+        # the replica has amplitude 1 at 1 m: the compressed primary's peak times its path is R itself
+        assert abs(p1) * l1 == pytest.approx(r, rel=0.03)
+        assert abs(p2 / p1) * l2 / l1 == pytest.approx(r, rel=0.02)
+        assert abs(np.angle(-p2 / p1)) < 0.6
+    with pytest.raises(OptionError, match="province_impedance needs"):
+        load_scene("line1", overrides={"seabed.province_impedance": True})

@@ -4,7 +4,9 @@ Fonseca, Mayer & Kraft (2005): stack per-ping angular responses into
 patches (:mod:`.stack`), compute AVO attributes and the gradient–intercept
 analysis (:mod:`.attributes`), invert the APL-UW TR 9407 backscatter model
 (:mod:`.model`, :mod:`.sediment`) for grain size, impedance and roughness
-(:mod:`.inversion`), write the per-patch table (:mod:`.table`) and the
+(:mod:`.inversion`; jointly with the nadir reflection coefficient and the
+self-calibration of :mod:`clbeam.seabed.nadir`: :mod:`.calibration`,
+:mod:`.joint`), write the per-patch table (:mod:`.table`) and the
 figures (:mod:`.plot`, imported on demand because it loads matplotlib).
 """
 
@@ -15,7 +17,9 @@ _EXPORTS = {
         "AngularAttributes", "angular_attributes", "background_trend", "fluid_factor", "gradient_intercept", "product",
         "range_mask",
     ),
+    "clbeam.seabed.avo.calibration": ("Calibration", "survey_calibration"),
     "clbeam.seabed.avo.inversion": ("InversionResult", "invert_attributes", "invert_response"),
+    "clbeam.seabed.avo.joint": ("JointResult", "invert_joint", "nadir_model_reflection"),
     "clbeam.seabed.avo.model": (
         "backscatter_cross_section", "backscatter_strength_db", "critical_angle_deg", "kirchhoff_cross_section",
         "kirchhoff_integral", "lambert_strength_db", "perturbation_cross_section", "reflection_coefficient",

@@ -165,7 +165,9 @@ def write_figures(folder, patches, rows, *, frequency_hz=None, sound_speed_m_s: 
     ``avo_response_first.png`` / ``avo_response_last.png``: the first and the
     last patch's stacked response with its attributes (and the fitted model
     when the inversion ran); ``avo_gradient_intercept.png``;
-    ``avo_track.png``: A, B, fluid factor and Mz along the track.
+    ``avo_track.png``: A, B, fluid factor and Mz along the track;
+    ``avo_nadir.png`` (when the rows have nadir coefficients): the nadir
+    coefficient and calibration per patch (:func:`plot_nadir`).
 
     Parameters
     ----------
@@ -204,4 +206,43 @@ def write_figures(folder, patches, rows, *, frequency_hz=None, sound_speed_m_s: 
         series["Mz (phi)"] = [r.mz_phi for r in rows]
     paths.append(plot_along_track(out / "avo_track.png", [r.along_track_m for r in rows], series,
                                   sides=[r.side for r in rows]))
+    if any(np.isfinite(r.nadir_reflection) for r in rows):
+        paths.append(plot_nadir(out / "avo_nadir.png", rows))
     return paths
+
+
+def plot_nadir(path, rows) -> Path:
+    """Each patch's nadir reflection coefficient (with the fitted sediment's) and calibration along the track.
+
+    Top: measured ``|R|`` with its standard error and, where the joint
+    inversion ran, the coefficient of the fitted sediment; bottom: each
+    patch's calibration with its error and the one applied to the survey.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Output PNG.
+    rows : list of PatchRecord
+        The AVO table's rows (one per patch and side; the nadir values are per patch).
+    """
+    x = np.array([r.along_track_m for r in rows])
+    fig, (top, bottom) = pyplot().subplots(2, 1, figsize=(8, 5), sharex=True)
+    top.errorbar(x, [r.nadir_reflection for r in rows], yerr=[r.nadir_reflection_error for r in rows], fmt="o",
+                 capsize=3, label="measured (seabed echo and multiple)")
+    for side, marker in (("port", "<"), ("starboard", ">")):
+        m = np.array([r.side == side and r.inversion == "joint" for r in rows])
+        if m.any():
+            top.plot(x[m], [r.nadir_model_reflection for r, k in zip(rows, m) if k], marker, ls="none",
+                     label=f"fitted sediment ({side})")
+    top.set_ylabel("nadir |R|")
+    top.legend(fontsize=7)
+    bottom.errorbar(x, [r.nadir_calibration_db for r in rows], yerr=[r.nadir_calibration_error_db for r in rows],
+                    fmt="o", capsize=3, label="patch")
+    if rows and rows[0].calibration_source != "none":
+        bottom.axhline(rows[0].calibration_db, color=TREND_COLOR, label=f"applied ({rows[0].calibration_source})")
+    bottom.set_ylabel("calibration (dB)")
+    bottom.set_xlabel("along-track position (m)")
+    bottom.legend(fontsize=7)
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    return _save(fig, path)

@@ -23,7 +23,9 @@ from clbeam.seabed.avo.attributes import (
     background_trend,
     fluid_factor,
 )
+from clbeam.seabed.avo.calibration import Calibration
 from clbeam.seabed.avo.inversion import InversionResult, invert_response
+from clbeam.seabed.avo.joint import invert_joint
 from clbeam.seabed.avo.stack import Patch
 
 
@@ -36,8 +38,17 @@ class PatchRecord:
     inversion was run; ``nadir_reflection`` (and its standard error) is the
     seabed's normal-incidence reflection coefficient of the patch's pings
     from the nadir echo and its surface multiple, and ``nadir_calibration_db``
-    the constant its primary echo gives the strengths (reported, not applied;
-    :func:`clbeam.seabed.nadir.patch_reflections`), NaN without the ping file.
+    (and its error) the constant its primary echo gives the strengths
+    (:func:`clbeam.seabed.nadir.patch_reflections`), NaN without the ping file.
+    ``calibration_db`` is what was added to every strength of the survey,
+    ``calibration_source`` where it came from (``nadir``: the patches'
+    estimates combined, :func:`clbeam.seabed.avo.calibration.survey_calibration`;
+    ``option``; ``none``: relative strengths).  ``inversion`` is ``joint``
+    (nadir coefficient and calibrated response, :mod:`clbeam.seabed.avo.joint`),
+    ``response`` or ``none``; ``mz_low_phi``..``mz_high_phi`` the 68 %
+    interval of the joint inversion, ``calibration_offset_db`` the offset it
+    fitted, ``unresolved`` the parameters it could not resolve
+    (``;``-separated).
     """
 
     ping_start: int
@@ -70,25 +81,41 @@ class PatchRecord:
     nadir_reflection: float = math.nan
     nadir_reflection_error: float = math.nan
     nadir_calibration_db: float = math.nan
+    nadir_calibration_error_db: float = math.nan
+    calibration_db: float = 0.0
+    calibration_error_db: float = math.nan
+    calibration_source: str = "none"
+    inversion: str = "none"
+    mz_low_phi: float = math.nan
+    mz_high_phi: float = math.nan
+    calibration_offset_db: float = math.nan
+    nadir_model_reflection: float = math.nan
+    unresolved: str = ""
 
 
 COLUMNS = tuple(f.name for f in fields(PatchRecord))
 
 
-def survey_records(patches: list[Patch], *, frequency_hz: float | None = None,
-                   invert: bool = True, **inversion_options) -> list[PatchRecord]:
+def survey_records(patches: list[Patch], *, frequency_hz: float | None = None, invert: bool = True,
+                   nadir=None, calibration: Calibration | None = None, **inversion_options) -> list[PatchRecord]:
     """AVO attributes, trend, fluid factor, product and inversion of every patch.
 
     Parameters
     ----------
     patches : list of Patch
-        Stacked responses (:func:`clbeam.seabed.avo.stack.stack_sides`).
+        Stacked responses (:func:`clbeam.seabed.avo.stack.stack_sides`), calibrated by ``calibration``.
     frequency_hz : float, optional
         Sonar centre frequency (Hz); required when ``invert``.
     invert : bool
-        Run :func:`clbeam.seabed.avo.inversion.invert_response` on each patch.
+        Invert each patch: jointly with its nadir coefficient when it has
+        one and the strengths are absolute (:func:`clbeam.seabed.avo.joint.invert_joint`),
+        else the response alone (:func:`clbeam.seabed.avo.inversion.invert_response`).
+    nadir : dict, optional
+        ``(ping_start, ping_stop) -> PatchNadir`` (:func:`clbeam.seabed.nadir.patch_reflections`).
+    calibration : Calibration, optional
+        What was added to the strengths; default none (relative strengths).
     **inversion_options
-        Passed to :func:`~clbeam.seabed.avo.inversion.invert_response`.
+        Passed to the inversion (``sound_speed_water_m_s``, ``fit_roughness``, ``fit_volume``).
 
     Returns
     -------
@@ -99,6 +126,8 @@ def survey_records(patches: list[Patch], *, frequency_hz: float | None = None,
             f"the background trend needs at least 2 patches, got {len(patches)}")
     require(not invert or frequency_hz is not None, OptionError,
             "frequency_hz is required when invert is True")
+    cal = calibration or Calibration(0.0, math.nan, "none")
+    nadir = nadir or {}
     attrs: list[AngularAttributes] = [angular_attributes(p.incidence_deg, p.strength_db) for p in patches]
     a = np.array([x.intercept_a_db for x in attrs])
     b = np.array([x.gradient_b_db for x in attrs])
@@ -106,17 +135,42 @@ def survey_records(patches: list[Patch], *, frequency_hz: float | None = None,
     ff = fluid_factor(a, b, g, d)
     rows = []
     for p, at, f_ in zip(patches, attrs, ff):
-        extra = {}
+        found = nadir.get((p.ping_start, p.ping_stop))
+        extra = _nadir_fields(found, cal)
         if invert:
-            r: InversionResult = invert_response(p.incidence_deg, p.strength_db, frequency_hz, **inversion_options)
-            extra = dict(mz_phi=r.mz, mz_std_phi=r.mz_std, impedance_ratio=r.impedance_ratio,
-                         impedance_std=r.impedance_std, roughness_w2_cm4=r.w2_cm4,
-                         log10_w2_std=r.log10_w2_std, volume_sigma2=r.sigma2, misfit_db=r.misfit_db)
+            extra.update(_inversion_fields(p, found, cal, frequency_hz, inversion_options))
         rows.append(PatchRecord(ping_start=p.ping_start, ping_stop=p.ping_stop, side=p.side,
                                 along_track_m=p.along_track_m, fluid_factor_db=float(f_),
                                 product_db2=at.intercept_a_db * at.gradient_b_db,
                                 trend_g=g, trend_d_db=d, **at.as_dict(), **extra))
     return rows
+
+
+def _nadir_fields(found, cal: Calibration) -> dict:
+    """The nadir and calibration columns of a patch."""
+    out = dict(calibration_db=cal.db, calibration_error_db=cal.error_db, calibration_source=cal.source)
+    if found is not None:
+        out.update(nadir_reflection=found.reflection, nadir_reflection_error=found.reflection_error,
+                   nadir_calibration_db=found.calibration_db, nadir_calibration_error_db=found.calibration_error_db)
+    return out
+
+
+def _inversion_fields(p: Patch, found, cal: Calibration, frequency_hz: float, options: dict) -> dict:
+    """The inversion columns of a patch: joint when it has a nadir coefficient and absolute strengths."""
+    r0 = math.nan if found is None else found.reflection
+    if cal.absolute and math.isfinite(cal.error_db) and 0 < r0 < 1:
+        j = invert_joint(p.incidence_deg, p.strength_db, frequency_hz, nadir_reflection=r0,
+                         nadir_reflection_error=np.nan_to_num(found.reflection_error), calibration_error_db=cal.error_db,
+                         **options)
+        return dict(inversion="joint", mz_phi=j.mz, mz_std_phi=j.mz_std, mz_low_phi=j.mz_low, mz_high_phi=j.mz_high,
+                    impedance_ratio=j.impedance_ratio, impedance_std=j.impedance_std, roughness_w2_cm4=j.w2_cm4,
+                    log10_w2_std=j.log10_w2_std, volume_sigma2=j.sigma2, misfit_db=j.misfit_db,
+                    calibration_offset_db=j.calibration_offset_db, nadir_model_reflection=j.nadir_model_reflection,
+                    unresolved=";".join(j.unresolved))
+    r: InversionResult = invert_response(p.incidence_deg, p.strength_db, frequency_hz, **options)
+    return dict(inversion="response", mz_phi=r.mz, mz_std_phi=r.mz_std, impedance_ratio=r.impedance_ratio,
+                impedance_std=r.impedance_std, roughness_w2_cm4=r.w2_cm4, log10_w2_std=r.log10_w2_std,
+                volume_sigma2=r.sigma2, misfit_db=r.misfit_db)
 
 
 def write_csv(path, records: list[PatchRecord]) -> Path:

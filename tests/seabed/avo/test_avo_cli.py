@@ -41,9 +41,12 @@ def test_cli_writes_the_table_and_figures_and_separates_the_provinces(two_provin
     # gain 1e-3 of the synthetic images = -30 dB: calibrated strengths
     assert run([str(two_provinces), "-o", str(out), "--pings-per-patch", "20", "--calibration-db", "30",
                 "--figures", str(figs)]) == 0
-    assert "40 ping(s) -> 4 patches" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "40 ping(s) -> 4 patches" in said and "calibration +30.0 dB (--calibration-db)" in said
     with out.open() as fh:
         rows = list(csv.DictReader(fh))
+    assert {(r["calibration_source"], r["calibration_db"], r["inversion"]) for r in rows} == {
+        ("option", "30.0", "response")}
     assert tuple(rows[0].keys()) == COLUMNS
     assert [(r["side"], r["ping_start"], r["ping_stop"]) for r in rows] == [
         ("port", "0", "20"), ("starboard", "0", "20"), ("port", "20", "40"), ("starboard", "20", "40")]
@@ -90,12 +93,8 @@ def test_bad_inputs_are_one_line_errors(tmp_path, two_provinces):
         run([str(two_provinces), "-o", str(tmp_path / "a.csv"), "--frequency", "-5"])
 
 
-def test_pings_add_each_patchs_nadir_reflection_coefficient_the_closed_form(tmp_path):
-    """``--pings``: the patches of a simulated line over a flat mud seabed (Line 1's, without pipelines or
-    slope) carry the seabed's normal-incidence reflection coefficient from the nadir echo and its surface
-    multiple, within 5 % of the closed form (m - n) / (m + n) = 0.1011, with a finite standard error; and
-    the calibration its primary gives within 1 dB of the simulator's: its replica has amplitude 1 at 1 m
-    (G = 1) and the image sums 64 channels, -20 log10(64) = -36.12 dB."""
+def flat_mud_line(tmp_path, max_range_m: float):
+    """Eight pings of Line 1 without pipelines or slope, recorded to ``max_range_m``, and their images."""
     import tomllib
     from importlib.resources import files
 
@@ -107,12 +106,22 @@ def test_pings_add_each_patchs_nadir_reflection_coefficient_the_closed_form(tmp_
     d = tomllib.loads((files("clbeam.sim.scenes") / "line1.toml").read_text())
     d["target"] = []
     d["seabed"]["slope_across_deg"] = 0.0
-    d["record"]["max_range_m"] = 500.0
+    d["record"]["max_range_m"] = max_range_m
     d["survey"]["pings"] = 8
     pings = write_ping_file(simulate(scene_from_mapping(d, name="flat")), tmp_path / "pings.nc")
     images = tmp_path / "img.nc"
     assert main(["image", str(pings), "-o", str(images), "--range-res", "0.5", "--angle-res", "0.5",
-                 "--angles", "-75", "75", "--max-range", "500", "-q"]) == 0
+                 "--angles", "-75", "75", "--max-range", str(max_range_m), "-q"]) == 0
+    return pings, images
+
+
+def test_pings_add_each_patchs_nadir_reflection_coefficient_the_closed_form(tmp_path):
+    """``--pings``: the patches of a simulated line over a flat mud seabed (Line 1's, without pipelines or
+    slope) carry the seabed's normal-incidence reflection coefficient from the nadir echo and its surface
+    multiple, within 5 % of the closed form (m - n) / (m + n) = 0.1011, with a finite standard error; and
+    the calibration its primary gives within 1 dB of the simulator's: its replica has amplitude 1 at 1 m
+    (G = 1) and the image sums 64 channels, -20 log10(64) = -36.12 dB."""
+    pings, images = flat_mud_line(tmp_path, 500.0)
     out = tmp_path / "avo.csv"
     assert run([str(images), "-o", str(out), "--pings-per-patch", "4", "--no-invert", "--pings", str(pings),
                 "-q"]) == 0
@@ -124,3 +133,37 @@ def test_pings_add_each_patchs_nadir_reflection_coefficient_the_closed_form(tmp_
         assert float(r["nadir_reflection"]) == pytest.approx(r_closed, rel=0.05)
         assert 0 < float(r["nadir_reflection_error"]) < 0.05 * r_closed
         assert float(r["nadir_calibration_db"]) == pytest.approx(-20 * np.log10(64), abs=1.0)
+        assert 0 < float(r["nadir_calibration_error_db"]) < 1.0
+        # the survey's calibration is the patches' combined, applied to the strengths
+        assert r["calibration_source"] == "nadir" and r["inversion"] == "none"
+        assert float(r["calibration_db"]) == pytest.approx(-20 * np.log10(64), abs=1.0)
+    # the ping file beside the images is found by default: the same table without --pings
+    found = tmp_path / "found.csv"
+    assert run([str(images), "-o", str(found), "--pings-per-patch", "4", "--no-invert", "-q"]) == 0
+    assert found.read_text() == out.read_text()
+    # the same strengths uncalibrated: every attribute moves by the applied calibration
+    plain = tmp_path / "plain.csv"
+    assert run([str(images), "-o", str(plain), "--pings-per-patch", "4", "--no-invert", "--no-nadir", "-q"]) == 0
+    with plain.open() as fh:
+        rel = list(csv.DictReader(fh))
+    assert all(x["calibration_source"] == "none" for x in rel)
+    for a, b in zip(rows, rel):
+        assert float(a["near_mean_db"]) - float(b["near_mean_db"]) == pytest.approx(float(a["calibration_db"]))
+
+
+def test_a_record_too_short_for_the_multiple_falls_back_to_relative_strengths(tmp_path, caplog):
+    """Recorded to 400 m, the multiple (455 m) is beyond every ping's end: no coefficient, a warning, the
+    strengths stay relative and the inversion fits the response alone."""
+    import logging
+
+    pings, images = flat_mud_line(tmp_path, 400.0)
+    out = tmp_path / "avo.csv"
+    with caplog.at_level(logging.WARNING):
+        assert run([str(images), "-o", str(out), "--pings-per-patch", "4", "-q"]) == 0
+    assert "no patch gave a nadir calibration" in caplog.text
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert all(r["nadir_reflection"] == "nan" and r["calibration_source"] == "none" for r in rows)
+    assert {r["inversion"] for r in rows} == {"response"}
+    with pytest.raises(ClbeamError, match="contradict"):
+        run([str(images), "-o", str(out), "--pings", str(pings), "--no-nadir"])
