@@ -39,6 +39,9 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
     echo "clbeam setup: installing clbeam and its test extras into .venv"
     .venv/bin/python -m pip install -q --upgrade pip
     .venv/bin/python -m pip install -q -e ".[test]"
+    # arlpy, the peer library of tests/compare/test_arlpy.py, pins numpy<2 in its metadata
+    # although its arlpy.uwa functions run on numpy 2: installed without its pins
+    .venv/bin/python -m pip install -q --no-deps "arlpy==1.9.3"
     touch "$stamp"
 fi
 
