@@ -63,9 +63,10 @@ def run(args) -> int:
     n = resp.port_db.shape[0]
     patches = stack_sides(resp.incidence_deg, resp.port_db, resp.starboard_db,
                           pings_per_patch=args.pings_per_patch, along_track_m=resp.along_track_m)
-    pings = args.pings or (None if args.no_nadir else _pings_beside(args.images))
-    nadir = _nadir_reflections(patches, pings, args) if pings else {}
-    cal = _calibration(nadir, args)
+    attrs = _image_attributes(args.images)
+    pings = args.pings or (None if args.no_nadir else _pings_beside(args.images, attrs))
+    nadir = _nadir_reflections(patches, pings, args, opts.absorption_db_per_m * 1000) if pings else {}
+    cal = _calibration(nadir, args, attrs)
     if cal.source == "nadir":  # the option's calibration is in the strengths already
         patches = [dataclasses.replace(p, strength_db=p.strength_db + cal.db) for p in patches]
     rows = survey_records(patches, frequency_hz=opts.frequency_hz, invert=not args.no_invert, nadir=nadir,
@@ -82,20 +83,33 @@ def run(args) -> int:
     return 0
 
 
-def _pings_beside(images) -> Path | None:
-    """The ping file the images were made from (their ``source_file`` attribute), when it lies beside them."""
+def _image_attributes(images) -> dict:
+    """The image file's global attributes."""
     from clbeam.io.images import open_images
 
     with open_images(images) as ds:
-        name = ds.attrs.get("source_file")
+        return dict(ds.attrs)
+
+
+def _pings_beside(images, attrs: dict) -> Path | None:
+    """The ping file the images were made from (their ``source_file`` attribute), when it lies beside them."""
+    name = attrs.get("source_file")
     path = Path(images).parent / str(name) if name else None
-    if path is None or not path.is_file():
+    if path is None or not path.exists():
         return None
-    log.info("nadir calibration from %s, the ping file beside the images (--no-nadir to skip)", path.name)
+    log.warning("nadir calibration from %s, the ping file beside the images (--no-nadir to skip)", path.name)
     return path
 
 
-def _nadir_reflections(patches: list, pings, args) -> dict:
+def _calibration_blocked(attrs: dict) -> str:
+    """Why the nadir calibration does not fit these images ("" when it does): it is for single-ping images of
+    channel-calibrated data summed without weights (``-20 log10(M G)``)."""
+    found = [f"{k} {attrs[k]}" for k, ok in (("apodization", "rect"), ("calibrated", "1"), ("stacked_pings", "1"))
+             if k in attrs and str(attrs[k]) != ok]
+    return ", ".join(found)
+
+
+def _nadir_reflections(patches: list, pings, args, absorption_db_per_km: float) -> dict:
     """``(ping_start, ping_stop) -> PatchNadir`` of every patch, from the ping file ``pings``."""
     from clbeam.seabed.nadir import patch_reflections
 
@@ -103,17 +117,23 @@ def _nadir_reflections(patches: list, pings, args) -> dict:
     bar = progress(None, total=sum(b - a for a, b in ranges), desc="nadir", quiet=args.quiet)
     try:
         return dict(zip(ranges, patch_reflections(pings, ranges, bandwidth_hz=args.bandwidth,
-                                                  progress=bar.update)))
+                                                  absorption_db_per_km=absorption_db_per_km, progress=bar.update)))
     finally:
         bar.close()
 
 
-def _calibration(nadir: dict, args):
+def _calibration(nadir: dict, args, attrs: dict):
     """The calibration to apply: ``--calibration-db``, else the patches' nadir estimates combined, else none."""
     from clbeam.seabed.avo.calibration import SYSTEMATIC_ERROR_DB, Calibration, survey_calibration
 
     if args.calibration_db is not None:  # taken good to the nadir estimate's floor in the joint inversion
         return Calibration(args.calibration_db, SYSTEMATIC_ERROR_DB, "option")
+    blocked = _calibration_blocked(attrs)
+    if nadir and blocked:
+        log.warning("the images were made with %s: the nadir calibration (for single-ping, channel-calibrated, "
+                    "unweighted images) is reported, not applied; strengths stay relative (give --calibration-db)",
+                    blocked)
+        return Calibration(0.0, float("nan"), "none")
     found = list(nadir.values())
     cal = survey_calibration([f.calibration_db for f in found], [f.calibration_error_db for f in found])
     if cal is None and found:

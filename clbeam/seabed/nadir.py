@@ -357,7 +357,7 @@ def coherent_calibration_db(traces, times_s: np.ndarray, primary_s, multiple_s, 
     the coherent mean of the patch's primaries (its energy less what the
     scattering leaves, times the peak-to-energy ratio of the clean
     multiple's mean: the same pulse), over ``R`` of the same pings
-    (:func:`coherent_reflection`).  An error in the primary's amplitude
+    (:func:`coherent_reflection`) and the water's absorption over ``L1``.  An error in the primary's amplitude
     enters twice (once through ``R``); the standard error is the
     jackknife's of the two together.
 
@@ -389,7 +389,7 @@ def coherent_calibration_db(traces, times_s: np.ndarray, primary_s, multiple_s, 
         if not (r > 0 and e1 > 0 and e2 > 0):
             return math.nan
         peak = math.sqrt(e1 * float(np.max(np.abs(m[rows].mean(axis=0)))) ** 2 / e2)
-        return -20 * math.log10(n_channels * peak * l1 / r)
+        return -20 * math.log10(n_channels * peak * l1 / r) - absorption_db_per_km * l1 / 1000
     return _jackknife(estimate, p.shape[0])
 
 
@@ -486,8 +486,8 @@ class PatchNadir(NamedTuple):
     calibration_error_db: float
 
 
-def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str = "opencl", device=None,
-                      progress=None) -> list[PatchNadir]:
+def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, absorption_db_per_km: float = 0.0,
+                      backend: str = "opencl", device=None, progress=None) -> list[PatchNadir]:
     """The nadir reflection coefficient of patches of a ping file and the calibration it gives, one
     :class:`PatchNadir` per ``(start, stop)`` (:func:`coherent_reflection`, :func:`coherent_calibration_db`).
 
@@ -506,6 +506,8 @@ def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str =
         Patches as ping ranges ``start..stop - 1``.
     bandwidth_hz : float
         Pulse bandwidth (Hz).
+    absorption_db_per_km : float
+        Water absorption at the band's centre (dB/km), as the strengths' corrections use.
     backend, device
         Imaging engine of the vertical beam.
     progress : callable, optional
@@ -517,10 +519,12 @@ def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, backend: str =
         stop = max((b for _, b in ranges), default=0)
         require(stop <= pings.n_pings, OptionError,
                 f"{Path(pings_path).name}: the patches reach ping {stop - 1}, the file has {pings.n_pings} ping(s)")
-        return [_patch(pings, a, b, bandwidth_hz, backend, device, progress) for a, b in ranges]
+        return [_patch(pings, a, b, bandwidth_hz, absorption_db_per_km, backend, device, progress)
+                for a, b in ranges]
 
 
-def _patch(pings, a: int, b: int, bandwidth_hz: float, backend, device, progress) -> PatchNadir:
+def _patch(pings, a: int, b: int, bandwidth_hz: float, absorption_db_per_km: float, backend, device,
+           progress) -> PatchNadir:
     """The :class:`PatchNadir` of pings ``a..b-1``, each echo on the beam that points at it."""
     from clbeam.imaging.imager import Imager, ImagingOptions
     from clbeam.imaging.vertical_beam import TraceAxis, VerticalBeam
@@ -543,7 +547,10 @@ def _patch(pings, a: int, b: int, bandwidth_hz: float, backend, device, progress
         if progress is not None:
             progress()
     tr1, tr2, p1, p2, m, c = (list(v) for v in zip(*rows))
-    r, se = coherent_reflection(tr1, t, p1, p2, bandwidth_hz=bandwidth_hz, multiple_traces=tr2)
+    c0 = float(np.median(c))
+    r, se = coherent_reflection(tr1, t, p1, p2, bandwidth_hz=bandwidth_hz, multiple_traces=tr2,
+                                absorption_db_per_km=absorption_db_per_km, sound_speed_m_s=c0)
     cal, cal_se = coherent_calibration_db(tr1, t, p1, p2, int(np.median(m)), bandwidth_hz=bandwidth_hz,
-                                          sound_speed_m_s=float(np.median(c)), multiple_traces=tr2)
+                                          sound_speed_m_s=c0, multiple_traces=tr2,
+                                          absorption_db_per_km=absorption_db_per_km)
     return PatchNadir(r, se, cal, cal_se)

@@ -66,7 +66,8 @@ def survey_calibration(values_db, errors_db) -> Calibration | None:
     Parameters
     ----------
     values_db, errors_db : array_like
-        Each patch's calibration and standard error (dB); NaN entries are left out.
+        Each patch's calibration and standard error (dB); NaN entries and non-positive errors are left out,
+        and errors below 0.05 dB count as 0.05 dB (no patch outweighs the rest by more than the floor allows).
 
     Returns
     -------

@@ -17,17 +17,19 @@ standard deviations:
   ``sigma_R`` the measurement's standard error and a model floor (5 %:
   roughness and layering that the half-space leaves out) together;
 * the calibration: ``dC / sigma_C``, the offset the fit may add to the
-  strengths against the calibration's own uncertainty.
+  model (the opposite of what it would add to the strengths: reported as
+  ``calibration_offset_db = -dC``) against the calibration's own uncertainty.
 
 The parameters are ``Mz``, ``log10 w2``, ``log10 sigma2`` (each free or tied
 to its grain-size regression) and ``dC``; density, sound speed and loss
 follow ``Mz`` through the regressions (:mod:`clbeam.seabed.avo.sediment`).
 Uncertainties are the linearised covariance ``(J^T J)^-1``, scaled up by the
 reduced chi-square when the fit is worse than the errors say.  ``Mz`` gets
-a profile-likelihood interval too: the grain sizes whose best fit (the
-other parameters re-fitted) is within ``max(1, chi2_red)`` of the best.
-A parameter is *unresolved* when that interval is wider than 2 phi
-(``Mz``) or its standard deviation exceeds a quarter of its bounds' span
+a profile-likelihood interval too: where its best fit (the other
+parameters re-fitted) rises ``max(1, chi2_red)`` above the best.
+A parameter is *unresolved* when that interval is wider than 2 phi or
+its standard deviation above 1 phi (``Mz``), or when its standard
+deviation is unknown or exceeds a quarter of its bounds' span
 (roughness, volume): the TR 9407 regressions give every grain size finer
 than about 5.5 phi the same impedance and nearly the same strengths, so
 silts and clays come out unresolved by construction.
@@ -162,22 +164,32 @@ def _best_fit(residual, problem: _JointProblem, starts) -> optimize.OptimizeResu
 
 
 def _mz_profile(residual, problem: _JointProblem, best, scale: float) -> tuple[float, float]:
-    """The 68 % profile-likelihood interval of Mz: grid grain sizes whose re-fitted chi-square is within
-    ``scale`` of the best (the other parameters started from the best fit)."""
+    """The 68 % profile-likelihood interval of Mz: the re-fitted chi-square (the other parameters started from
+    the best fit) on a 0.25-phi grid and at the best fit (0 there); each end where it crosses ``scale`` above the
+    best, linearly interpolated between the outermost grain size inside and its neighbour outside (the bound
+    when there is none)."""
     lo, hi = problem.bounds()
-    inside = []
-    for mz in np.arange(MZ_MIN, MZ_MAX + 1e-9, _PROFILE_STEP_PHI):
+    mz_best = float(best.x[0])
+    grid = np.union1d(np.arange(MZ_MIN, MZ_MAX + 1e-9, _PROFILE_STEP_PHI), [mz_best])
+    rise = np.zeros(grid.size)
+    for k, mz in enumerate(grid):
+        if mz == mz_best:
+            continue
+
         def sub(y, mz=mz):
             return residual(np.concatenate([[mz], y]))
         r = optimize.least_squares(sub, np.clip(best.x[1:], lo[1:], hi[1:]), bounds=(lo[1:], hi[1:]),
                                    method="trf", diff_step=1e-4)
-        if 2 * r.cost <= 2 * best.cost + scale:
-            inside.append(mz)
-    mz_best = float(best.x[0])
-    if not inside:
-        return mz_best, mz_best
-    step = _PROFILE_STEP_PHI / 2  # the interval reaches half a grid step beyond its last grain size inside
-    return max(min(min(inside) - step, mz_best), MZ_MIN), min(max(max(inside) + step, mz_best), MZ_MAX)
+        rise[k] = max(2 * (r.cost - best.cost), 0.0)
+    inside = np.flatnonzero(rise <= scale)
+    ends = []
+    for k, step in ((inside[0], -1), (inside[-1], 1)):
+        if not 0 <= k + step < grid.size:
+            ends.append(float(grid[k]))
+            continue
+        frac = (scale - rise[k]) / (rise[k + step] - rise[k])
+        ends.append(float(grid[k] + frac * (grid[k + step] - grid[k])))
+    return ends[0], ends[1]
 
 
 def _check_errors(nadir_reflection, nadir_reflection_error, calibration_error_db, strength_error_db) -> None:
@@ -246,15 +258,17 @@ def _result(residual, problem: _JointProblem, best, n_data: int, sigma_s: float)
     chi2_red = 2 * best.cost / max(n_data + 2 - n_free, 1)
     scale = max(1.0, chi2_red)
     try:
-        std = np.sqrt(np.clip(np.diag(np.linalg.inv(best.jac.T @ best.jac)), 0.0, None) * scale)
+        var = np.diag(np.linalg.inv(best.jac.T @ best.jac)) * scale
     except np.linalg.LinAlgError:
-        std = np.full(n_free, np.nan)
+        var = np.full(n_free, np.nan)
+    # a negative variance from an ill-conditioned inverse is no information, not a perfect one
+    std = np.sqrt(np.where(var >= 0, var, np.nan))
     mz, lw, ls = problem.full(best.x)
     lo, hi = _mz_profile(residual, problem, best, scale)
     std_w = float(std[1]) if problem.fit_roughness else 0.0
     std_s = float(std[n_free - 2]) if problem.fit_volume else 0.0
     unresolved = tuple(name for name, bad in (
-        ("mz", hi - lo > MZ_RESOLVED_WIDTH_PHI),
+        ("mz", hi - lo > MZ_RESOLVED_WIDTH_PHI or not std[0] <= MZ_RESOLVED_WIDTH_PHI / 2),
         ("roughness", problem.fit_roughness and not std_w <= (LOG10_W2_BOUNDS[1] - LOG10_W2_BOUNDS[0]) / 4),
         ("volume", problem.fit_volume and not std_s <= (LOG10_SIGMA2_BOUNDS[1] - LOG10_SIGMA2_BOUNDS[0]) / 4),
     ) if bad)

@@ -151,6 +151,27 @@ def test_pings_add_each_patchs_nadir_reflection_coefficient_the_closed_form(tmp_
         assert float(a["near_mean_db"]) - float(b["near_mean_db"]) == pytest.approx(float(a["calibration_db"]))
 
 
+def test_the_nadir_calibration_is_not_applied_to_images_it_does_not_fit(tmp_path, caplog):
+    """Images made with Hann weights sum the channels with a smaller gain than -20 log10(M G) assumes: the nadir
+    coefficient is reported, the calibration is not applied, and a warning says why."""
+    import logging
+
+    from clbeam.cli.main import main
+
+    pings, _ = flat_mud_line(tmp_path, 500.0)
+    hann = tmp_path / "hann.nc"
+    assert main(["image", str(pings), "-o", str(hann), "--range-res", "0.5", "--angle-res", "0.5",
+                 "--angles", "-75", "75", "--max-range", "500", "--apodization", "hann", "-q"]) == 0
+    out = tmp_path / "avo.csv"
+    with caplog.at_level(logging.WARNING):
+        assert run([str(hann), "-o", str(out), "--pings-per-patch", "4", "--no-invert", "-q"]) == 0
+    assert "apodization hann" in caplog.text and "not applied" in caplog.text
+    with out.open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert all(r["calibration_source"] == "none" and float(r["calibration_db"]) == 0.0 for r in rows)
+    assert all(float(r["nadir_reflection"]) == pytest.approx(0.1011, rel=0.05) for r in rows)
+
+
 def test_a_record_too_short_for_the_multiple_falls_back_to_relative_strengths(tmp_path, caplog):
     """Recorded to 400 m, the multiple (455 m) is beyond every ping's end: no coefficient, a warning, the
     strengths stay relative and the inversion fits the response alone."""

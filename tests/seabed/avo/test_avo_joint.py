@@ -76,15 +76,23 @@ def test_too_few_bins_are_refused():
 
 
 def test_survey_calibration_is_the_inverse_variance_mean_with_the_floor():
-    v, e = [-36.0, -35.0, float("nan")], [0.5, 1.0, 0.2]
-    cal = survey_calibration(v, e)
-    w = np.array([4.0, 1.0])
-    mean = float(np.sum(w * np.array(v[:2])) / w.sum())
-    assert cal.db == pytest.approx(mean) and cal.n_patches == 2 and cal.source == "nadir"
-    # the scatter (1 dB) exceeds what the errors allow: the Birge ratio scales the standard error up
-    birge = math.sqrt(float(np.sum(w * (np.array(v[:2]) - mean) ** 2)))
-    se = math.sqrt(1 / w.sum()) * max(1.0, birge)
-    assert cal.error_db == pytest.approx(math.hypot(se, SYSTEMATIC_ERROR_DB))
+    # two patches agreeing within their errors: weights 4 and 1, mean -35.8 dB, error sqrt(1/5) with the floor
+    cal = survey_calibration([-36.0, -35.0, float("nan")], [0.5, 1.0, 0.2])
+    assert cal.db == pytest.approx(-35.8) and cal.n_patches == 2 and cal.source == "nadir"
+    assert cal.error_db == pytest.approx(math.hypot(math.sqrt(0.2), SYSTEMATIC_ERROR_DB))
+    # two patches 2 dB apart with 0.3 dB errors: the scatter is 4.7 times what the errors allow (Birge ratio
+    # sqrt((1/0.09) (1 + 1) / 1) = 4.71), so the mean's error 0.212 dB grows to 1.0 dB
+    cal = survey_calibration([-36.0, -34.0], [0.3, 0.3])
+    assert cal.db == pytest.approx(-35.0)
+    assert cal.error_db == pytest.approx(math.hypot(1.0, SYSTEMATIC_ERROR_DB), rel=1e-9)
     assert survey_calibration([float("nan")], [1.0]) is None
     with pytest.raises(OptionError, match="one length"):
         survey_calibration([1.0, 2.0], [1.0])
+
+
+def test_the_grain_size_interval_is_never_narrower_than_the_data_allow():
+    """Off the 0.25-phi profile grid, noise-free data still get an interval about the truth with a width."""
+    mz = 1.125
+    s = backscatter_strength_db(90.0 - INC, FREQ_HZ, mz=mz)
+    j = invert_joint(INC, s, FREQ_HZ, nadir_reflection=closed_form_r(mz), nadir_reflection_error=0.01)
+    assert j.mz_low < mz < j.mz_high and 0.02 < j.mz_high - j.mz_low < 1.0
