@@ -50,6 +50,8 @@ PEAK_THRESHOLD = 0.25
 DEFAULT_MIN_CHANNELS = 0.5
 #: peaks only this far above the ping's noise floor (dB; clbeam.imaging.detection)
 DEFAULT_MIN_SNR_DB = 6.0
+#: peaks only this far above the mean intensity of the cells around them (dB; clbeam.imaging.detection)
+DEFAULT_MIN_CONTRAST_DB = 12.0
 #: CF threshold of persistence maps and of the survey association (paper Figs. 9-10)
 MAP_THRESHOLD = 0.4
 

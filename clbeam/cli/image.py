@@ -81,6 +81,7 @@ def run(args) -> int:
                  "apodization": opts.apodization, "calibrated": int(opts.calibrate), "stacked_pings": args.stack,
                  "min_channels": opts.min_channels, "threshold": opts.threshold,
                  "min_snr_db": "off" if opts.min_snr_db is None else opts.min_snr_db,
+                 "min_contrast_db": "off" if opts.min_contrast_db is None else opts.min_contrast_db,
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         t0 = time.perf_counter()
         out = Path(args.output)

@@ -13,7 +13,13 @@ import math
 import sys
 from pathlib import Path
 
-from clbeam.constants import DEFAULT_MAX_ERROR_DB, DEFAULT_MIN_CHANNELS, DEFAULT_MIN_SNR_DB, PEAK_THRESHOLD
+from clbeam.constants import (
+    DEFAULT_MAX_ERROR_DB,
+    DEFAULT_MIN_CHANNELS,
+    DEFAULT_MIN_CONTRAST_DB,
+    DEFAULT_MIN_SNR_DB,
+    PEAK_THRESHOLD,
+)
 from clbeam.errors import ClbeamError, OptionError
 
 
@@ -72,8 +78,9 @@ def add_grid_options(p: argparse.ArgumentParser) -> None:
                    help="angle window from nadir (degree, starboard positive, default -80 80)")
 
 
-def add_imaging_options(p: argparse.ArgumentParser) -> None:
-    """Engine choice, mode, outputs and the processing options of :class:`~clbeam.imaging.ImagingOptions`."""
+def add_imaging_options(p: argparse.ArgumentParser, *, min_contrast_db: float | None = DEFAULT_MIN_CONTRAST_DB) -> None:
+    """Engine choice, mode, outputs and the processing options of :class:`~clbeam.imaging.ImagingOptions`
+    (``min_contrast_db``: the default of ``--min-contrast-db``)."""
     g = p.add_argument_group("imaging")
     add_engine_choice(p, group=g)
     g.add_argument("--upsample", type=int, default=None, metavar="N",
@@ -91,7 +98,7 @@ def add_imaging_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--sound-speed", type=float, default=None, metavar="M/S", help="override the file's sound speed (m/s)")
     g.add_argument("--threshold", type=float, default=PEAK_THRESHOLD,
                    help=f"coherence-peak threshold on smoothed CF (default {PEAK_THRESHOLD:g})")
-    add_min_snr_option(g)
+    add_min_snr_option(g, min_contrast_db=min_contrast_db)
     g.add_argument("--min-channels", type=float, default=DEFAULT_MIN_CHANNELS, metavar="N",
                    help="CF and peaks only in cells summed from at least N channels: a count, or below 1 a "
                         f"fraction of the ping's usable channels (default {DEFAULT_MIN_CHANNELS:g})")
@@ -129,11 +136,16 @@ def min_snr_db(text: str) -> float | None:
     return value
 
 
-def add_min_snr_option(group) -> None:
-    """``--min-snr-db`` (image, peaks, survey)."""
+def add_min_snr_option(group, *, min_contrast_db: float | None = DEFAULT_MIN_CONTRAST_DB) -> None:
+    """``--min-snr-db`` and ``--min-contrast-db`` (default ``min_contrast_db``): the detection test (image,
+    peaks, survey)."""
     group.add_argument("--min-snr-db", type=min_snr_db, default=DEFAULT_MIN_SNR_DB, metavar="DB",
                        help="peaks only this far above the ping's noise floor (default "
                             f"{DEFAULT_MIN_SNR_DB:g} dB; 'off': every peak above the CF threshold)")
+    shown = "off" if min_contrast_db is None else f"{min_contrast_db:g} dB"
+    group.add_argument("--min-contrast-db", type=min_snr_db, default=min_contrast_db, metavar="DB",
+                       help="where the clutter is reverberation, peaks only this far above its mean intensity around "
+                            f"them (100 range resolutions and 1.5 beamwidths; default {shown}; 'off': no clutter test)")
 
 
 def options_from_args(args, **overrides):
@@ -149,7 +161,8 @@ def options_from_args(args, **overrides):
                   seabed_depth_m=args.seabed_depth, apodization=args.apodization,
                   calibrate=not args.no_calibration, mlh=args.mlh, use_svp=not args.isospeed,
                   sediment_speed_m_s=args.sediment_speed, refine_peaks=not args.no_refine,
-                  min_channels=args.min_channels, min_snr_db=args.min_snr_db)
+                  min_channels=args.min_channels, min_snr_db=args.min_snr_db,
+                  min_contrast_db=args.min_contrast_db)
     return ImagingOptions(**{**fields, **overrides})
 
 

@@ -30,7 +30,8 @@ def run(args) -> int:
     check_output_path(args.output, args.images)
     ds = open_images(args.images)
     try:
-        rows = peaks_from_images(ds, args.threshold, mlh=args.mlh, min_snr_db=args.min_snr_db)
+        rows = peaks_from_images(ds, args.threshold, mlh=args.mlh, min_snr_db=args.min_snr_db,
+                                 min_contrast_db=args.min_contrast_db)
     finally:
         ds.close()
     write_peaks_csv(rows, args.output)

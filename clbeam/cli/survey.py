@@ -29,7 +29,8 @@ def add_arguments(p) -> None:
                         "OUT.objects.geojson, OUT.lines.csv, OUT.lines.geojson, OUT.map.png, OUT.persistence.png "
                         "beside it")
     add_grid_options(p)
-    add_imaging_options(p)
+    # the lines tell pipelines from the seabed's scatterers across pings: every hit counts (docs/survey.md)
+    add_imaging_options(p, min_contrast_db=None)
     g = p.add_argument_group("survey")
     g.add_argument("--images", action="store_true", help="also write the images (one compressed chunk per ping)")
     g.add_argument("--workers", type=int, default=None, metavar="N", help="start a local Dask cluster of N processes")

@@ -179,9 +179,10 @@ def compare_on_simulation(scene: str = "line1", *, pings: int = 3, grid: PolarGr
     grid = grid or PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, min_range_m=320.0, max_range_m=660.0,
                                      angles_deg=(-80.0, -35.0))
     ds = simulate(load_scene(scene, pings=pings, max_range_m=float(grid.ranges_m[-1]) + 20.0), seed=seed)
-    # MLH merges the grid's peaks: both sides of the comparison start from them
-    imager = Imager(grid, ImagingOptions(interp=interp, threshold=threshold, refine_peaks=False), backend=backend,
-                    engine=engine)
+    # MLH merges the grid's peaks: both sides of the comparison start from them (no clutter test: the
+    # comparison is of what MLH does to every coherence peak)
+    imager = Imager(grid, ImagingOptions(interp=interp, threshold=threshold, refine_peaks=False, min_contrast_db=None),
+                    backend=backend, engine=engine)
     win = {"max_horizontal_m": max_horizontal_m, "max_vertical_m": max_vertical_m}
     scores = {k: DetectionScore() for k in ("without", "peak", "lobe")}
     n_peaks = n_dets = 0

@@ -23,6 +23,7 @@ import numpy as np
 from clbeam.constants import (
     DEFAULT_MAX_ERROR_DB,
     DEFAULT_MIN_CHANNELS,
+    DEFAULT_MIN_CONTRAST_DB,
     DEFAULT_MIN_SNR_DB,
     PEAK_THRESHOLD,
     SEDIMENT_SPEED_RANGE_M_S,
@@ -122,6 +123,10 @@ class ImagingOptions:
     min_snr_db : float or None
         Peaks only this far (dB) above the ping's noise floor
         (:mod:`clbeam.imaging.detection`; default 6 dB); ``None``: every peak above the threshold.
+    min_contrast_db : float or None
+        Peaks only this far (dB) above the mean of the clutter around them
+        (:mod:`clbeam.imaging.detection`, where the clutter is reverberation; default 12 dB); ``None``: no
+        clutter test.
     """
 
     interp: str = "auto"
@@ -142,6 +147,7 @@ class ImagingOptions:
     refine_peaks: bool = True
     min_channels: float = DEFAULT_MIN_CHANNELS
     min_snr_db: float | None = DEFAULT_MIN_SNR_DB
+    min_contrast_db: float | None = DEFAULT_MIN_CONTRAST_DB
 
     def __post_init__(self):
         if self.interp != "auto":
@@ -161,6 +167,8 @@ class ImagingOptions:
                 f"got {self.min_channels!r}")
         require(self.min_snr_db is None or math.isfinite(self.min_snr_db), OptionError,
                 f"the minimum SNR must be a finite number of dB or None, got {self.min_snr_db!r}")
+        require(self.min_contrast_db is None or math.isfinite(self.min_contrast_db), OptionError,
+                f"the minimum clutter contrast must be a finite number of dB or None, got {self.min_contrast_db!r}")
         if self.seabed_band_m is not None:
             band = tuple(float(v) for v in self.seabed_band_m)
             require(len(band) == 2 and all(np.isfinite(band)) and band[0] + band[1] > 0, OptionError,
@@ -492,7 +500,7 @@ class Imager:
         """Rows of the peaks table for one ping (SPEC §3 step 7) with this imager's threshold and MLH
         option (refined with ``refine``, see :func:`clbeam.imaging.peaks.peak_rows`)."""
         return peak_rows(context, cf_smooth, intensity, self.grid, threshold=self.options.threshold,
-                         min_snr_db=self.options.min_snr_db,
+                         min_snr_db=self.options.min_snr_db, min_contrast_db=self.options.min_contrast_db,
                          mlh=self.options.mlh, refine=refine)
 
     def _refiner(self, inp: BeamformInput, setting: Setting, cf_smooth: np.ndarray, intensity: np.ndarray | None):

@@ -18,13 +18,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from clbeam.constants import (
+    DEFAULT_MIN_CONTRAST_DB,
     DEFAULT_MIN_SNR_DB,
     PEAK_THRESHOLD,
     SBP29_ARRAY_WIDTH_M,
     SBP29_BAND_HZ,
     SOUND_SPEED_M_S,
 )
-from clbeam.imaging.detection import annotate_and_gate, noise_floor, smoothing_eigenvalues
+from clbeam.imaging.detection import (
+    annotate_and_gate,
+    contrast_windows,
+    local_contrast,
+    noise_floor,
+    smoothing_eigenvalues,
+)
 from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.mlh import (
     arc_tolerances,
@@ -99,7 +106,8 @@ class PingContext:
 
 def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None, grid: PolarGrid, *,
               threshold: float = PEAK_THRESHOLD, mlh: bool = False, position: str = "lobe", refine=None,
-              min_snr_db: float | None = DEFAULT_MIN_SNR_DB, **mlh_options) -> list[dict]:
+              min_snr_db: float | None = DEFAULT_MIN_SNR_DB,
+              min_contrast_db: float | None = DEFAULT_MIN_CONTRAST_DB, **mlh_options) -> list[dict]:
     """Rows of the peaks table for one ping (SPEC §3 step 7).
 
     Parameters
@@ -129,14 +137,17 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
     min_snr_db : float or None
         Keep only peaks this far above the ping's noise floor (dB,
         :mod:`clbeam.imaging.detection`); ``None``: every peak above the CF threshold.
+    min_contrast_db : float or None
+        Keep only peaks this far above the mean of the clutter around them (dB,
+        :mod:`clbeam.imaging.detection`, where the clutter is reverberation); ``None``: no clutter test.
     **mlh_options
         With ``mlh``: overrides of :func:`~clbeam.imaging.mlh.suppress_main_lobe_highlights`.
 
     Returns
     -------
     list of dict
-        :data:`clbeam.io.peaks.PEAK_COLUMNS`, ``snr_db`` and ``pfa`` (with an intensity image) and the
-        ship's navigation, by decreasing CF.
+        :data:`clbeam.io.peaks.PEAK_COLUMNS`, ``snr_db``, ``contrast_db`` and ``pfa`` (with an intensity
+        image) and the ship's navigation, by decreasing CF.
     """
     rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options)
     if intensity is None:
@@ -144,8 +155,11 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
     band = context.band_hz
     lam = smoothing_eigenvalues(float(np.median(np.diff(grid.ranges_m))) if grid.shape[1] > 1 else 1.0,
                                 float(band[1] - band[0]), context.sound_speed_m_s)
+    window, guard = contrast_windows(band, context.array_width_m, context.sound_speed_m_s)
+    contrast = local_contrast(intensity, grid.ranges_m, grid.angles_deg, rows, window=window, guard=guard)
     return annotate_and_gate(rows, floor=noise_floor(intensity, cf_smooth), n_channels=context.n_channels,
-                             eigenvalues=lam, min_snr_db=min_snr_db)
+                             eigenvalues=lam, min_snr_db=min_snr_db, contrast=contrast,
+                             min_contrast_db=min_contrast_db)
 
 
 def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options) -> list[dict]:
@@ -204,7 +218,8 @@ def _channels(value) -> int | None:
 
 
 def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = False,
-                      min_snr_db: float | None = DEFAULT_MIN_SNR_DB) -> list:
+                      min_snr_db: float | None = DEFAULT_MIN_SNR_DB,
+                      min_contrast_db: float | None = DEFAULT_MIN_CONTRAST_DB) -> list:
     """Peak rows of every ping of an image dataset (:func:`peak_rows` on its ``cf``, Hann smoothed).
 
     Parameters
@@ -215,7 +230,7 @@ def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = Fals
         Coherence-peak threshold on the smoothed CF.
     mlh : bool
         One detection per main-lobe arc.
-    min_snr_db : float or None
+    min_snr_db, min_contrast_db : float or None
         As :func:`peak_rows`.
     """
     grid = PolarGrid(ds["range"].values, ds["angle"].values)
@@ -226,5 +241,5 @@ def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = Fals
         cf_s = hann_smooth(ds["cf"].isel(ping=i).values)
         inten = ds["intensity"].isel(ping=i).values if "intensity" in ds.variables else None
         rows.extend(peak_rows(image_file_context(ds, i), cf_s, inten, grid, threshold=threshold, mlh=mlh,
-                              min_snr_db=min_snr_db))
+                              min_snr_db=min_snr_db, min_contrast_db=min_contrast_db))
     return rows

@@ -111,11 +111,13 @@ def _checked_speeds(speeds_m_s) -> np.ndarray:
 
 def _scan_options(base: ImagingOptions, seabed_depth_m: float, threshold: float, first_speed_m_s: float):
     """The scan's imaging options: ``base`` with the seabed depth, MLH, threshold and a sediment speed
-    set (``base`` giving any of them itself is refused)."""
+    set (``base`` giving any of them itself is refused), and no clutter test: the reflector is an extended
+    echo that fills the clutter window, not a compact target in it."""
     require(base.sediment_speed_m_s is None and base.seabed_band_m is None and base.seabed_depth_m is None
             and not base.mlh, OptionError, "the sediment-speed scan sets the sediment speed, seabed depth, MLH and "
             "seabed band itself: leave them out of its options")
     return dataclasses.replace(base, seabed_depth_m=float(seabed_depth_m), mlh=True, threshold=threshold,
+                               min_contrast_db=None,
                                outputs=tuple(set(base.outputs) | {"intensity", "cf"}), sediment_speed_m_s=first_speed_m_s)
 
 

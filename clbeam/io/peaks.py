@@ -8,7 +8,7 @@ from pathlib import Path
 
 PEAK_COLUMNS = ("ping", "range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db")
 #: the detection test's columns (clbeam.imaging.detection), in every table that has an intensity
-DETECTION_COLUMNS = ("snr_db", "pfa")
+DETECTION_COLUMNS = ("snr_db", "contrast_db", "pfa")
 
 
 def write_peaks_csv(rows: list, path: str | os.PathLike) -> Path:

@@ -37,6 +37,7 @@ PEAK_TABLE = {
     "cf": (np.float64, "smoothed coherence factor at the peak", "1"),
     "intensity_db": (np.float64, "intensity |S|^2 at the peak", "dB re input units squared"),
     "snr_db": (np.float64, "intensity over the ping's noise floor", "dB"),
+    "contrast_db": (np.float64, "echo over the mean clutter around it", "dB"),
     "pfa": (np.float64, "probability that incoherent noise gives this smoothed CF or more, per cell", "1"),
     "file_index": (np.int32, "index of the input file (attribute input_files)", "1"),
     "file_ping": (np.int32, "ping index within the input file", "1"),

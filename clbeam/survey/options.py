@@ -83,6 +83,9 @@ class SurveyOptions:
         Image grid of every ping.
     imaging : ImagingOptions
         Mode, outputs (must include ``"cf"``), peak threshold, seabed band …
+        By default without the clutter test (``min_contrast_db=None``): the
+        survey's lines tell pipelines from the seabed's scatterers by their
+        arrangement across pings, and need every hit a pipeline gives.
     backend : {"opencl", "reference"}
         Imaging engine.
     device : str or int or None
@@ -104,7 +107,7 @@ class SurveyOptions:
     """
 
     grid: PolarGrid
-    imaging: ImagingOptions = field(default_factory=ImagingOptions)
+    imaging: ImagingOptions = field(default_factory=lambda: ImagingOptions(min_contrast_db=None))
     backend: str = "opencl"
     device: object = None
     images: bool = False

@@ -47,10 +47,12 @@ def test_peaks_from_an_image_file_equal_those_written_while_imaging(ping_file, t
     """Unrefined (grid-cell) peaks are the same from memory and from the file; refined ones come
     from those cells: their cell columns are file peaks, and the merged counts add up to them."""
     out, p1, p2, p3 = tmp_path / "img.zarr", tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "c.csv"
-    # the level gate off: it judges a refined row by its refined intensity, a grid peak by its cell's
-    grid_args = ["--max-range", "50", "--angles", "-20", "30", "--angle-res", "0.5", "--min-snr-db", "off", "-q"]
+    # the gates off: the level gate judges a refined row by its refined intensity, a grid peak by its cell's,
+    # and a refined row stands for grid peaks the clutter test would judge one by one
+    gates = ["--min-snr-db", "off", "--min-contrast-db", "off"]
+    grid_args = ["--max-range", "50", "--angles", "-20", "30", "--angle-res", "0.5", *gates, "-q"]
     assert main(["image", str(ping_file), "-o", str(out), "--peaks", str(p1), "--no-refine", *grid_args]) == 0
-    assert main(["peaks", str(out), "-o", str(p2), "--min-snr-db", "off", "-q"]) == 0
+    assert main(["peaks", str(out), "-o", str(p2), *gates, "-q"]) == 0
     a, b = read_peaks_csv(p1), read_peaks_csv(p2)
     assert len(a) == len(b) > 0
     key = lambda r: (r["ping"], r["angle_deg"], r["range_m"])  # noqa: E731

@@ -10,8 +10,11 @@ import pytest
 from scenes import bandlimited_noise, point_ping, polar_point
 
 from clbeam.imaging.detection import (
+    clutter_test_passes,
+    contrast_windows,
     equivalent_threshold,
     false_alarm_probability,
+    local_contrast,
     noise_floor,
     smoothing_eigenvalues,
     smoothing_variance_factor,
@@ -107,3 +110,112 @@ def test_saddlepoint_tail_of_a_sum_of_exponentials_against_closed_forms():
     lam = np.array([0.5, 0.3, 0.2])
     exact = sum(np.prod([li / (li - lj) for lj in lam if lj != li]) * np.exp(-y / li) for li in lam)
     np.testing.assert_allclose(exponential_sum_sf(y, lam), exact, rtol=0.05)
+
+
+def _clutter_grid():
+    """The paper's cell size, 0.2 m x 0.1 degree, over 100 m x 40 degrees, and the SBP29's clutter window and
+    guard (+-10.7 m and +-6.6 degrees; +-1.07 m and +-2.2 degrees)."""
+    window, guard = contrast_windows(BAND, 3.528, C)
+    assert window == pytest.approx((10.714, 6.644), abs=1e-3) and guard == pytest.approx((1.0714, 2.2146), abs=1e-4)
+    return np.arange(200.0, 300.0, 0.2), np.arange(-20.0, 20.0, 0.1), dict(window=window, guard=guard)
+
+
+def test_clutter_contrast_of_speckle_follows_the_exponential_tail():
+    """Fully developed speckle: intensity exponential about its mean, so a cell's contrast over the mean of
+    the ~11,000 cells of its window outside the guard's cross exceeds T with probability exp(-T) (5 dB:
+    0.042; 8 dB: 0.0018)."""
+    ranges, angles, sizes = _clutter_grid()
+    rng = np.random.default_rng(5)
+    x = rng.exponential(3.0, size=(angles.size, ranges.size))
+    i = rng.integers(70, angles.size - 70, 20_000)
+    j = rng.integers(60, ranges.size - 60, 20_000)
+    rows = [{"range_m": ranges[b], "angle_deg": angles[a]} for a, b in zip(i, j)]
+    x_guard_max = np.array([x[a - 22:a + 23, b - 5:b + 6].max() for a, b in zip(i, j)])
+    echo, clutter = local_contrast(x, ranges, angles, rows, **sizes)
+    np.testing.assert_allclose(echo, 10 * np.log10(x_guard_max), rtol=1e-12)  # the echo: its guard's strongest
+    contrast = 10 * np.log10(x[i, j]) - clutter
+    for t_db, tol in ((5.0, 0.08), (8.0, 0.25)):
+        assert np.mean(contrast >= t_db) == pytest.approx(np.exp(-10 ** (t_db / 10)), rel=tol)
+
+
+def test_clutter_window_leaves_out_the_guard_and_cells_without_intensity():
+    """The echo's main lobe, its spread along its range (all angles) and along its angle (all ranges), and NaN
+    cells (outside a seabed band) do not enter the clutter mean: an echo 100 times a uniform clutter of 1 has
+    a contrast of exactly 20 dB, from a CF peak on its tail too."""
+    ranges, angles, sizes = _clutter_grid()
+    x = np.ones((angles.size, ranges.size))
+    i, j = int(np.argmin(np.abs(angles))), int(np.argmin(np.abs(ranges - 250.0)))
+    x[:, j - 1:j + 2] = 30.0           # the low frequencies' wide beam along the echo's range
+    x[i - 20:i + 21, :] = 5.0          # range sidelobes along its angle
+    x[i - 4:i + 5, j - 1:j + 2] = 50.0
+    x[:, j + 20:] = np.nan
+    x[i, j] = 100.0
+    tail = {"range_m": ranges[j + 3], "angle_deg": angles[i]}
+    echo, clutter = local_contrast(x, ranges, angles, [tail], **sizes)
+    assert echo[0] - clutter[0] == pytest.approx(20.0, abs=1e-9)
+
+
+def test_clutter_sums_equal_a_brute_force_count_at_edges_corners_and_nans():
+    """The window less the guard's cross, by inclusion-exclusion, against counting every cell: peaks on the
+    image's edges and corners, NaN cells in an edge band and scattered."""
+    rng = np.random.default_rng(11)
+    ranges, angles = np.arange(0.0, 8.0, 0.2), np.arange(-2.0, 2.0, 0.1)
+    window, guard = (2.1, 0.75), (0.45, 0.25)
+    for _ in range(40):
+        x = rng.exponential(1.0, size=(angles.size, ranges.size))
+        x[:, :3][rng.random((angles.size, 3)) < 0.3] = np.nan
+        x[rng.random(x.shape) < 0.05] = np.nan
+        i, j = rng.choice([0, 1, angles.size // 2, angles.size - 1]), rng.choice([0, 2, ranges.size // 2, ranges.size - 1])
+        echo, clutter = local_contrast(x, ranges, angles, [{"range_m": ranges[j], "angle_deg": angles[i]}],
+                                       window=window, guard=guard)
+        da, dr = np.abs(angles - angles[i])[:, None], np.abs(ranges - ranges[j])[None, :]
+        in_window = (da <= window[1] + 1e-9) & (dr <= window[0] + 1e-9)
+        in_cross = in_window & ((da <= guard[1] + 1e-9) | (dr <= guard[0] + 1e-9))
+        in_guard = (da <= guard[1] + 1e-9) & (dr <= guard[0] + 1e-9)
+        cells = x[in_window & ~in_cross]
+        cells = cells[np.isfinite(cells)]
+        assert clutter[0] == pytest.approx(10 * np.log10(cells.mean()), abs=1e-9)
+        assert echo[0] == pytest.approx(10 * np.log10(np.nanmax(np.where(in_guard, x, np.nan))), abs=1e-12)
+
+
+def test_the_clutter_test_applies_where_the_clutter_is_reverberation():
+    # contrast 8 dB over clutter 12 dB above the noise: reverberation, below 10 dB: out
+    assert not clutter_test_passes(8.0, 12.0, 10.0)
+    # the same contrast where the clutter is the noise (2 dB above the floor): the SNR test judges it
+    assert clutter_test_passes(8.0, 2.0, 10.0)
+    assert clutter_test_passes(10.0, 12.0, 10.0) and clutter_test_passes(2.0, 12.0, None)
+    assert clutter_test_passes(float("nan"), 12.0, 10.0) and not clutter_test_passes(8.0, float("nan"), 10.0)
+
+
+def test_an_echo_in_noise_keeps_its_detection_and_reports_its_contrast():
+    """A point echo 18.6 dB above noise: its contrast is its SNR (the clutter is the noise), and the clutter
+    test removes nothing the noise test kept (noise alone: the clutter's mean is the floor)."""
+    g = grid(0.1)
+    ping = noise_ping(7, echo=1.5)
+    gated = Imager(g, ImagingOptions(interp="lanczos4", refine_peaks=False)).image(ping).peaks
+    no_clutter = Imager(g, ImagingOptions(interp="lanczos4", refine_peaks=False, min_contrast_db=None)).image(ping)
+    assert len(gated) == len(no_clutter.peaks)
+    best = min(gated, key=lambda r: abs(r["range_m"] - 60.0) + abs(r["angle_deg"] - 10.0))
+    assert best["contrast_db"] == pytest.approx(best["snr_db"], abs=1.5)
+
+
+@pytest.mark.slow
+def test_line1_clutter_falls_fivefold_and_every_pipeline_detection_stays():
+    """One ping of the simulated Line 1 (paper grid to 700 m): the seabed's and sub-bottom's scatterers give
+    hundreds of coherent peaks far above the noise; the clutter test leaves a fifth or fewer of the peaks
+    near no pipeline, and each pipeline's detection (the demo's rule) stays."""
+    from clbeam.evaluation.demo import score_targets, truth_yz
+    from clbeam.io.pingfile import pings_from_dataset
+    from clbeam.sim import load_scene, simulate
+
+    ds = simulate(load_scene("line1", pings=1, max_range_m=700.0))
+    ping = pings_from_dataset(ds, "line1").ping(0)
+    g = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=700.0, angles_deg=(-80.0, 80.0))
+    truth = truth_yz(ds, 0)
+    found = {}
+    for label, opts in (("noise", ImagingOptions(min_contrast_db=None)), ("default", ImagingOptions())):
+        scores, rest = score_targets(Imager(g, opts).image(ping).peaks, truth[:, 0], truth[:, 1],
+                                     ds["target"].values, 0)
+        found[label] = ([s.name for s in scores if s.detected], len(rest))
+    assert found["default"][0] == found["noise"][0] == ["A", "B", "C"]
+    assert found["default"][1] * 5 <= found["noise"][1]

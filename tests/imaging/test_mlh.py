@@ -331,7 +331,8 @@ def test_clbeam_image_mlh_merges_every_coherence_peak_into_one_detection(tmp_pat
     from clbeam.sim import load_scene, simulate
 
     ping_file = write_ping_file(simulate(load_scene("line1", pings=1, max_range_m=520)), tmp_path / "p.nc")
-    grid = ["--min-range", "420", "--max-range", "520", "--angles", "-75", "-55"]
+    # every raw peak counted: the clutter test (a separate gate) off
+    grid = ["--min-range", "420", "--max-range", "520", "--angles", "-75", "-55", "--min-contrast-db", "off"]
     assert cli.main(["image", str(ping_file), "-o", str(tmp_path / "a.nc"), *grid, "--peaks",
                      str(tmp_path / "a.csv"), "--no-refine", "-q"]) == 0
     assert cli.main(["image", str(ping_file), "-o", str(tmp_path / "b.nc"), *grid, "--mlh", "--peaks",

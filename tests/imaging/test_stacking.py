@@ -121,7 +121,8 @@ def test_clbeam_image_stack_writes_the_stacked_images_and_peaks(line1, tmp_path)
     ds, path, imgs = line1
     out, peaks = tmp_path / "stacked.nc", tmp_path / "stacked.csv"
     grid_args = ["--range-res", "0.2", "--angle-res", "0.1", "--min-range", "250", "--max-range", "700",
-                 "--angles", "-80", "-30", "--interp", "cubic", "--min-snr-db", "off"]  # the fixture's mode; CF peaks
+                 "--angles", "-80", "-30", "--interp", "cubic", "--min-snr-db", "off",  # the fixture's mode; CF peaks
+                 "--min-contrast-db", "off"]
     assert cli.main(["image", str(path), "-o", str(out), *grid_args, "--stack", "3", "--peaks", str(peaks), "-q"]) == 0
     import xarray as xr
 

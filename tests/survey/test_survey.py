@@ -92,8 +92,9 @@ def test_survey_peaks_equal_the_imagers_peaks_of_each_ping(line, reference):
     root = open_survey(reference)
     assert bool(root["imaged"].all()) and root.attrs["survey_complete"]
     assert int(root["n_peaks"].sum()) == peaks.sizes["peak"]
+    # the survey's default: no clutter test
     imager = Imager(PolarGrid.regular(range_res_m=0.5, angle_res_deg=0.25, min_range_m=200, max_range_m=380,
-                                      angles_deg=(-60, 60)), ImagingOptions(), backend="opencl")
+                                      angles_deg=(-60, 60)), ImagingOptions(min_contrast_db=None), backend="opencl")
     for survey_ping, (k, i) in ((1, (0, 1)), (6, (1, 2)), (11, (2, 3))):
         with PingFile(paths[k]) as f:
             expected = imager.image(f.ping(i)).peaks
@@ -123,7 +124,8 @@ def test_peaks_of_the_survey_store_equal_those_of_an_image_file_of_the_same_ping
 
     _, paths = line
     img, img_peaks = tmp_path / "first.nc", tmp_path / "first_peaks.csv"
-    assert survey_main(["image", str(paths[0]), "-o", str(img), *GRID, "--peaks", str(img_peaks), "-q"]) == 0
+    assert survey_main(["image", str(paths[0]), "-o", str(img), *GRID, "--peaks", str(img_peaks),
+                        "--min-contrast-db", "off", "-q"]) == 0  # the survey's default
     store_mlh, file_mlh, store_plain = tmp_path / "store_mlh.csv", tmp_path / "file_mlh.csv", tmp_path / "store.csv"
     assert survey_main(["peaks", str(reference), "-o", str(store_mlh), "--mlh", "-q"]) == 0
     assert survey_main(["peaks", str(img), "-o", str(file_mlh), "--mlh", "-q"]) == 0
@@ -220,7 +222,8 @@ def _survey_options():
 
     grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=0.25, min_range_m=200, max_range_m=380,
                              angles_deg=(-60, 60))
-    return survey.SurveyOptions(grid=grid, imaging=ImagingOptions(), images=True,
+    # the command line's defaults (clbeam survey: no clutter test)
+    return survey.SurveyOptions(grid=grid, imaging=ImagingOptions(min_contrast_db=None), images=True,
                                 lines=survey.LineOptions(min_score=float(LINES[1])))
 
 

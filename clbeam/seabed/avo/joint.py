@@ -49,6 +49,7 @@ from clbeam.seabed.avo.inversion import (
     LOG10_SIGMA2_BOUNDS,
     LOG10_W2_BOUNDS,
     _model_db,
+    _prepare,
     _Problem,
     _sediment,
 )
@@ -234,11 +235,9 @@ def invert_joint(incidence_deg, strength_db, frequency_hz: float, *, nadir_refle
     JointResult
     """
     _check_errors(nadir_reflection, nadir_reflection_error, calibration_error_db, strength_error_db)
-    inc = np.abs(np.asarray(incidence_deg, dtype=np.float64))
-    bs = np.asarray(strength_db, dtype=np.float64)
-    require(inc.ndim == 1 and bs.shape == inc.shape, OptionError,
-            f"incidence_deg and strength_db must be 1-D of equal length, got {inc.shape} and {bs.shape}")
-    keep = np.isfinite(bs) & (inc >= incidence_min_deg) & (inc < 90.0)
+    require(0 <= incidence_min_deg < 89.5, OptionError,
+            f"incidence_min_deg must be within 0-89.5 degrees, got {incidence_min_deg!r}")
+    inc, bs, keep = _prepare(incidence_deg, strength_db, (0.5, 90.0 - incidence_min_deg))
     problem = _JointProblem(fit_roughness, fit_volume, offset_bound_db=max(10.0, 5 * calibration_error_db))
     n_free = len(problem.start(1.0))
     require(int(keep.sum()) + 2 > n_free, OptionError,
