@@ -87,8 +87,9 @@ class PingContext:
         """The context of a :class:`~clbeam.model.ping.Ping` imaged on ``grid``
         (at ``sound_speed_m_s``, default the ping's, from ``n_channels`` usable channels)."""
         pulse = ping.pulse
-        lfm = pulse is not None and pulse.f0_hz is not None and pulse.f0_hz != pulse.f1_hz
-        band = (min(pulse.f0_hz, pulse.f1_hz), max(pulse.f0_hz, pulse.f1_hz)) if lfm else SBP29_BAND_HZ
+        known = pulse is not None and (pulse.waveform is not None or
+                                       (pulse.f0_hz is not None and pulse.f0_hz != pulse.f1_hz))
+        band = pulse.band_hz(ping.sample_rate_hz) if known else SBP29_BAND_HZ
         n = ping.n_channels
         width = float(np.ptp(ping.element_pos_m[:, 1])) * n / max(n - 1, 1)
         source = to_earth_frame(ping.source_pos_m, roll_deg=ping.roll_deg, heave_m=ping.heave_m)

@@ -65,6 +65,18 @@ class Pulse:
         return lfm_replica(f0_hz=self.f0_hz, f1_hz=self.f1_hz, duration_s=self.duration_s,
                            sample_rate_hz=sample_rate_hz)
 
+    def band_hz(self, sample_rate_hz: float, *, below_peak_db: float = 10.0) -> tuple[float, float]:
+        """The pulse's band (Hz): an LFM's sweep, or where an explicit waveform's power spectrum stands within
+        ``below_peak_db`` of its maximum (outermost frequencies)."""
+        if self.waveform is None:
+            return min(self.f0_hz, self.f1_hz), max(self.f0_hz, self.f1_hz)
+        w = np.asarray(self.waveform, dtype=np.float64)
+        n = max(8 * w.size, 1024)
+        power = np.abs(np.fft.rfft(w, n)) ** 2
+        f = np.fft.rfftfreq(n, 1.0 / sample_rate_hz)
+        inside = np.flatnonzero(power >= power.max() * 10 ** (-below_peak_db / 10))
+        return float(f[inside[0]]), float(f[inside[-1]])
+
     @property
     def centre_frequency_hz(self) -> float | None:
         """Band centre (Hz) of an LFM pulse, ``None`` for an explicit waveform."""
