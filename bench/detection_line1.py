@@ -15,7 +15,8 @@ import argparse
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--pings", type=int, default=3, help="pings of line1 to simulate (default 3)")
+    parser.add_argument("--pings", type=int, default=3, help="pings to simulate (default 3)")
+    parser.add_argument("--scene", default="line1", help="built-in scene (default line1; line4: the pipelines at 595-920 m)")
     args = parser.parse_args()
 
     from clbeam.evaluation.demo import score_targets, truth_yz
@@ -25,8 +26,8 @@ def main() -> None:
     from clbeam.sim import load_scene, simulate
 
     n = args.pings
-    ds = simulate(load_scene("line1", pings=n, max_range_m=1100.0))
-    pings = pings_from_dataset(ds, "line1")
+    ds = simulate(load_scene(args.scene, pings=n, max_range_m=1100.0))
+    pings = pings_from_dataset(ds, args.scene)
     grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=1100.0, angles_deg=(-80.0, 80.0))
     tests = {"CF threshold only": ImagingOptions(min_channels=1, min_snr_db=None, min_contrast_db=None),
              "noise test": ImagingOptions(min_contrast_db=None),

@@ -44,7 +44,9 @@ def survey_scene(spec: str, work: Path, lines: LineOptions):
     scan = scan_inputs([nc])
     grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=scan.max_range_m, min_range_m=0.0,
                              angles_deg=(-80.0, 80.0))
-    opts = SurveyOptions(grid=grid, imaging=ImagingOptions(seabed_band_m=(5.0, 40.0)), lines=lines)
+    # clbeam survey's defaults: the seabed band given, no per-ping clutter test (the lines do that job)
+    opts = SurveyOptions(grid=grid, imaging=ImagingOptions(seabed_band_m=(5.0, 40.0), min_contrast_db=None),
+                         lines=lines)
     out = work / f"{tag}.zarr"
     res = run_survey(scan, out, opts)
     return res, nc, out, opts
