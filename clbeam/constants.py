@@ -61,3 +61,7 @@ KNOT_M_S = 1852.0 / 3600.0
 #: WGS84 ellipsoid: semi-major axis (m) and flattening
 WGS84_A_M = 6378137.0
 WGS84_F = 1.0 / 298.257223563
+
+# -- seabed backscatter (AVO) -----------------------------------------------------
+#: consecutive pings stacked per patch and side by default
+AVO_PINGS_PER_PATCH = 30

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from clbeam.cli.options import progress
 from clbeam.constants import (
+    AVO_PINGS_PER_PATCH,
     SBP29_ARRAY_WIDTH_M,
     SBP29_BAND_HZ,
     SBP29_CENTRE_FREQUENCY_HZ,
@@ -25,7 +26,6 @@ from clbeam.constants import (
 )
 from clbeam.errors import OptionError, require
 from clbeam.io.paths import check_output_path
-from clbeam.seabed.avo.stack import DEFAULT_PINGS_PER_PATCH
 
 log = logging.getLogger(__name__)
 
@@ -155,8 +155,8 @@ def add_arguments(p) -> None:
     """The arguments of ``clbeam avo``."""
     p.add_argument("images", metavar="IMAGES.nc", help="image file written by 'clbeam image' (with intensity)")
     p.add_argument("-o", "--output", required=True, metavar="AVO.csv", help="per-patch table to write")
-    p.add_argument("--pings-per-patch", type=int, default=DEFAULT_PINGS_PER_PATCH, metavar="N",
-                   help=f"consecutive pings stacked per patch and side (default {DEFAULT_PINGS_PER_PATCH}; "
+    p.add_argument("--pings-per-patch", type=int, default=AVO_PINGS_PER_PATCH, metavar="N",
+                   help=f"consecutive pings stacked per patch and side (default {AVO_PINGS_PER_PATCH}; "
                         "a last, shorter patch is kept)")
     p.add_argument("--frequency", type=float, default=SBP29_CENTRE_FREQUENCY_HZ, metavar="HZ",
                    help=f"band centre (Hz, default {SBP29_CENTRE_FREQUENCY_HZ:g}: the SBP29's 2-9 kHz sweep)")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 from pathlib import Path
 
@@ -16,6 +17,8 @@ from clbeam.cli.options import (
 )
 from clbeam.errors import OptionError, require
 from clbeam.io.paths import check_output_path
+
+log = logging.getLogger(__name__)
 
 NAME = "image"
 HELP = "image a ping file into intensity and coherence factor"
@@ -47,6 +50,7 @@ def _image_pings(pings, imager, writer, stack, keep_sums: bool, quiet: bool) -> 
     from clbeam.imaging.stacking import stacked_ping_image
 
     peaks = []
+    log.debug("first ping's work starts at unix time %.3f s", time.time())  # the bench's start-up measure
     for ping in progress(pings, total=len(pings), desc="imaging", quiet=quiet):
         img = imager.image(ping)
         if stack is not None:

@@ -9,7 +9,6 @@ positive frequencies and double them.
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft
 
 from clbeam.errors import OptionError, require
 
@@ -53,6 +52,8 @@ def compress_analytic(samples: np.ndarray, replica: np.ndarray, precision: str =
     any_bad = bool(bad.any())
     if any_bad:
         x = np.where(bad, real(0), x)
+    import scipy.fft  # here, not at the top: analytic pings never need it (0.2-0.3 s of start-up)
+
     nfft = scipy.fft.next_fast_len(n + m - 1)
     # real-input FFT of the channels; the analytic spectrum is its positive
     # half (DC and Nyquist once, the rest doubled) with zeros above
@@ -94,6 +95,8 @@ def upsample_analytic(signal: np.ndarray, factor: int) -> np.ndarray:
     factor = int(factor)
     if factor == 1:
         return np.asarray(signal)
+    import scipy.fft
+
     x = np.asarray(signal, dtype=np.complex128)
     n = x.shape[-1]
     spec = scipy.fft.fft(np.nan_to_num(x), axis=-1)

@@ -14,9 +14,9 @@ from __future__ import annotations
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from clbeam.errors import ClbeamError, PingFileError, require
 from clbeam.io.pingfile import open_dataset
@@ -30,6 +30,9 @@ from clbeam.io.schema import (
     IMAGE_VARIABLES,
 )
 from clbeam.model.grid import PolarGrid
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 
 def image_arrays(img) -> dict:
@@ -67,9 +70,10 @@ class ImageWriter:
     attrs : dict
         Global attributes (processing parameters).
     background : bool
-        Write each ping in a worker thread while the caller images the next
-        (at most one ping in flight; an error of a write is raised by the
-        next :meth:`write` or by :meth:`close`).
+        Create the file and write each ping in a worker thread while the
+        caller images the next (at most one ping in flight; an error of the
+        creation or a write is raised by the next :meth:`write` or by
+        :meth:`close`).
     """
 
     def __init__(self, path, grid: PolarGrid, n_pings: int, variables, attrs: dict | None = None,
@@ -83,13 +87,22 @@ class ImageWriter:
         self.variables = [v for v in IMAGE_VARIABLES if v in set(variables)]
         self.attrs = {FORMAT_ATTRIBUTE: IMAGE_FORMAT, **(attrs or {})}
         self._zarr = self.path.suffix == ".zarr"
-        self._file = self._create_zarr() if self._zarr else self._create_netcdf()
+        self._file = None
         self._sonar_written = False
         self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="clbeam-image-writer") if background else None
         self._pending = None
+        if self._worker is None:
+            self._create()
+        else:  # created while the first ping is imaged; an error is raised by the first write or close
+            self._pending = self._worker.submit(self._create)
 
-    def _template(self) -> xr.Dataset:
-        """Coordinates and per-ping variables (NaN until written)."""
+    def _create(self) -> None:
+        self._file = self._create_zarr() if self._zarr else self._create_netcdf()
+
+    def _template(self):
+        """Coordinates and per-ping variables (NaN until written), as an :class:`xarray.Dataset`."""
+        import xarray as xr
+
         coords = {"ping": np.arange(self.n_pings)}
         for name, values in (("angle", self.grid.angles_deg), ("range", self.grid.ranges_m)):
             coords[name] = (name, values, IMAGE_COORDS[name].attrs())
@@ -98,15 +111,29 @@ class ImageWriter:
         return xr.Dataset(data, coords=coords, attrs=self.attrs)
 
     def _create_netcdf(self):
+        """The file with its coordinates, per-ping variables and image variables, written through
+        h5netcdf alone (xarray's writer costs half a second of imports at start-up)."""
         import h5netcdf
 
-        self._template().to_netcdf(self.path, engine="h5netcdf")
-        f = h5netcdf.File(self.path, "a")
         n_a, n_r = self.grid.shape
-        for name in self.variables:
-            # uncompressed: deflate shrinks these float images by under a fifth at about 1 s per variable and ping
-            v = f.create_variable(name, IMAGE_DIMS, IMAGE_DTYPES[name], chunks=(1, n_a, n_r))
-            v.attrs.update(IMAGE_VARIABLES[name].attrs())
+        f = h5netcdf.File(self.path, "w")
+        try:
+            f.dimensions = {"ping": self.n_pings, "angle": n_a, "range": n_r}
+            f.create_variable("ping", ("ping",), np.int64, data=np.arange(self.n_pings))
+            for name, values in (("angle", self.grid.angles_deg), ("range", self.grid.ranges_m)):
+                f.create_variable(name, (name,), np.float64, data=np.asarray(values, np.float64))
+                f.variables[name].attrs.update(IMAGE_COORDS[name].attrs())
+            for name, var in IMAGE_PING_VARIABLES.items():
+                v = f.create_variable(name, ("ping",), np.float64, data=np.full(self.n_pings, np.nan), fillvalue=np.nan)
+                v.attrs.update(var.attrs())
+            f.attrs.update(self.attrs)
+            for name in self.variables:
+                # uncompressed: deflate shrinks these float images by under a fifth at about 1 s per variable and ping
+                v = f.create_variable(name, IMAGE_DIMS, IMAGE_DTYPES[name], chunks=(1, n_a, n_r))
+                v.attrs.update(IMAGE_VARIABLES[name].attrs())
+        except Exception:
+            f.close()
+            raise
         return f
 
     def _create_zarr(self):

@@ -126,3 +126,22 @@ def test_peaks_mlh_from_an_image_file_equal_those_written_while_imaging(ping_fil
     for ra, rb in zip(sorted(a, key=key), sorted(b, key=key)):
         assert ra["n_merged"] == rb["n_merged"]
         assert ra["y_m"] == pytest.approx(rb["y_m"], abs=1e-4) and ra["z_m"] == pytest.approx(rb["z_m"], abs=1e-4)
+
+
+def test_image_command_reaches_its_first_ping_without_xarray_or_dask(ping_file, tmp_path):
+    """Start-up: the ping file and the image file are handled through h5py/h5netcdf alone (xarray,
+    pandas and dask cost about a second of imports); the --debug line the bench times is there."""
+    import time
+
+    cmd = [sys.executable, "-X", "importtime", "-m", "clbeam", "--debug", "image", str(ping_file), "-o",
+           str(tmp_path / "img.nc"), "--max-range", "55", "--min-range", "30", "--angles", "-5", "25", "-q"]
+    t0 = time.time()
+    run = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    before, marker, _ = run.stderr.partition("first ping's work starts at unix time ")
+    assert marker
+    started = float(_.split()[0])
+    assert t0 < started < time.time()
+    imported = {line.rsplit("|", 1)[-1].strip() for line in before.splitlines() if line.startswith("import time:")}
+    assert "h5py" in imported and "pyopencl" in imported  # the parse is right
+    assert not {"xarray", "pandas", "dask", "scipy.fft"} & imported
+    assert xr.open_dataset(tmp_path / "img.nc")["cf"].shape[0] == 3

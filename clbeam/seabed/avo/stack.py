@@ -16,10 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from clbeam.constants import AVO_PINGS_PER_PATCH
 from clbeam.errors import OptionError, require
 
 SIDES = ("port", "starboard")
-DEFAULT_PINGS_PER_PATCH = 30
+DEFAULT_PINGS_PER_PATCH = AVO_PINGS_PER_PATCH
 
 
 @dataclass(frozen=True)
