@@ -22,6 +22,7 @@ from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import SearchSize, clutter_density, line_score
 from clbeam.survey.lines import Track, TrackFrame, across_gate, find_tracks, line_burial, smooth_path
+from clbeam.survey.specular import fading_fit, specular_crossing
 
 log = logging.getLogger(__name__)
 
@@ -36,12 +37,17 @@ class LineDetections:
         ``(n,)`` survey pings.
     y, z, cf : numpy.ndarray
         ``(n,)`` cross-track offsets and depths (m, earth frame) and CFs.
+    intensity_db : numpy.ndarray or None
+        ``(n,)`` intensities (dB): with them a line whose echoes fade as a
+        smooth pipe's specular echo does is moved to where it crosses the
+        pings' planes (:mod:`clbeam.survey.specular`).
     """
 
     ping: np.ndarray
     y: np.ndarray
     z: np.ndarray
     cf: np.ndarray
+    intensity_db: np.ndarray | None = None
 
 
 @dataclass
@@ -152,7 +158,8 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     frame = _frame(det, order, sb, centre_yz, pings, s_ping)
     tracks = find_tracks(frame, options)
     size = _search_size(frame)
-    described = [(tr, *_describe(frame, tr, options, size, sb, centre_yz, nav, scaled)) for tr in tracks]
+    level = None if det.intensity_db is None else np.asarray(det.intensity_db, dtype=np.float64)[order]
+    described = [(tr, *_describe(frame, tr, options, size, (sb, centre_yz, level), nav, scaled)) for tr in tracks]
     kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], options)
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
@@ -214,16 +221,17 @@ def _search_size(frame: TrackFrame) -> SearchSize:
     return SearchSize(spacing_m=max(spacing, 1e-3), swath_m=span(frame.y), burial_span_m=span(b))
 
 
-def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSize, sb: np.ndarray,
-              centre_yz: np.ndarray, nav: SurveyNavigation, scaled: bool) -> tuple:
+def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSize, pings_info: tuple,
+              nav: SurveyNavigation, scaled: bool) -> tuple:
     """One line's row, ``(pings, y)``, path in the association frame, and ``[longitude, latitude]`` path (``None``
-    without navigation)."""
+    without navigation); ``pings_info``: the pings' seabeds and grid centres, the detections' levels (or ``None``)."""
+    sb, centre_yz, level = pings_info
     m = tr.members
     path_y = smooth_path(frame, tr, options.fit_length_m / 2)
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = _score(frame, tr, path_y, burial, options, size)
-    spec = _specular(frame, tr, path_y, sb, centre_yz)
+    spec = _specular(frame, tr, path_y, sb, centre_yz, level, options.fit_length_m)
     if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
         path_y, burial, burial_se = spec["path_y"], spec["burial_m"], spec["burial_error_m"]
     resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
@@ -254,9 +262,14 @@ def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, opti
     return line_score(hits, ext.size, density, gate_y, gate_b, size, options.max_angle_deg)
 
 
-def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray) -> dict | None:
-    """The line as a smooth pipe's specular echo (:func:`clbeam.survey.burial.specular_fit`) when its burials
-    say so (``k`` within two standard errors of 1 and more than two from 0), else ``None``."""
+def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray,
+              level: np.ndarray | None, half_width_m: float) -> dict | None:
+    """The line as a smooth pipe's specular echo, moved to where the pipe crosses each ping's plane
+    (:func:`clbeam.survey.specular.specular_crossing`), when its burials say so (:func:`clbeam.survey.burial.
+    specular_fit`: ``k`` within two standard errors of 1 and more than two from 0) or its echoes fade as a
+    specular echo's (:func:`clbeam.survey.specular.fading_fit`: ``beta`` more than three standard errors
+    above 0, a predicted fall of at least 3 dB) and the burials do not say otherwise (``k`` more than two
+    standard errors below 1); else ``None``."""
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     s_ext = frame.ping_s[tr.first:tr.last + 1]
@@ -266,10 +279,14 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     k = np.searchsorted(ext, frame.ping[m])
     g = frame.ping[m]
     fit = specular_fit(frame.y[m], frame.b[m], frame.b_sigma[m], slope[k], centre_yz[g], sb[g])
-    if not (math.isfinite(fit["k"]) and abs(fit["k"] - 1) <= 2 * fit["k_error"] and fit["k"] > 2 * fit["k_error"]):
+    finite = math.isfinite(fit["k"])
+    by_burial = finite and abs(fit["k"] - 1) <= 2 * fit["k_error"] and fit["k"] > 2 * fit["k_error"]
+    not_specular = finite and fit["k"] + 2 * fit["k_error"] < 1
+    fading = {"beta_db": np.nan} if level is None else fading_fit(level[m], frame.r[m], np.clip(slope[k], -1, 1))
+    by_fading = bool(fading["beta_db"] > 3 * fading["beta_error_db"] and fading["span_db"] >= 3.0)
+    if not (by_burial or (by_fading and not not_specular)):
         return None
-    sin_a = np.clip(slope, -0.95, 0.95)
-    y_c = (path_y - centre_yz[ext, 0]) / np.sqrt(1 - sin_a ** 2) + centre_yz[ext, 0]
+    y_c = specular_crossing(frame.y[m], frame.s[m], centre_yz[g, 0], s_ext, half_width_m)
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
 
 

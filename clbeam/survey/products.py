@@ -118,6 +118,7 @@ class _Detections:
     z: np.ndarray
     cf: np.ndarray
     row: np.ndarray
+    intensity_db: np.ndarray = None
     cols: dict = None
     pos: np.ndarray = None
     labels: np.ndarray = None
@@ -169,7 +170,7 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     nav, det = first.nav, first.detections
     nav.finish(first.per_ping["imaged"])
     _associate(det, nav, assoc)
-    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf), first.seabed,
+    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db), first.seabed,
                          np.stack([first.per_ping["centre_y"], first.per_ping["centre_z"]], axis=1),
                          first.per_ping["imaged"], nav, options.lines)
     row_labels = {c: np.full(first.n_rows, -1, dtype=np.int64) for c in ("object", "line")}
@@ -248,7 +249,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
     per_ping = {"imaged": np.zeros(n, dtype=bool), "n_peaks": np.full(n, -1, dtype=np.int32)}
     per_ping.update({k: np.full(n, fill, dtype=dtype) for k, (_, fill, dtype) in _RECORD_VARIABLES.items()})
     det_ping, det_row = array.array("q"), array.array("q")
-    det_y, det_z, det_cf = array.array("d"), array.array("d"), array.array("d")
+    det_y, det_z, det_cf, det_level = (array.array("d") for _ in range(4))
     sonar = {}
     seabed = np.full((n, 2), np.nan)
     row = 0
@@ -276,11 +277,12 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
                 det_y.append(pk["y_m"])
                 det_z.append(pk["z_m"])
                 det_cf.append(pk["cf"])
+                det_level.append(pk.get("intensity_db", np.nan))
                 det_row.append(row + k)
         row += len(rec["peaks"])
     dets = _Detections(np.asarray(det_ping, dtype=np.int64), *(np.asarray(a, dtype=np.float64)
                                                                for a in (det_y, det_z, det_cf)),
-                       row=np.asarray(det_row, dtype=np.int64))
+                       row=np.asarray(det_row, dtype=np.int64), intensity_db=np.asarray(det_level, dtype=np.float64))
     return _FirstPass(nav, per_ping, dets, row, sonar, seabed)
 
 

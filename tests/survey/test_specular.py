@@ -1,0 +1,112 @@
+"""A smooth pipe's specular echo: the crossing recovered from the echoes' nearest distances against the
+exact geometry of a circular pipe, the fading test against the levels it was built from, and a survey's
+lines telling a turning smooth pipe (moved to its crossings) from a rough one (left where it is)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from clbeam.survey.georef import SurveyNavigation
+from clbeam.survey.line_options import LineOptions
+from clbeam.survey.line_products import LineDetections, survey_lines
+from clbeam.survey.specular import fading_fit, local_quadratic, specular_crossing
+
+SPACING_M = 8.2  # the along-track distance of pings without navigation (LineOptions.nominal_spacing_m)
+
+
+def circle_pipe(s, crossing_m: float, radius_m: float, bends_away: bool):
+    """A pipe of constant curvature crossing the plane at ``s = 0`` at ``crossing_m`` across, parallel to the
+    track there: its crossings ``D(s)`` and the exact nearest distances ``h(s)`` from a ship on the track."""
+    centre = crossing_m + radius_m if bends_away else crossing_m - radius_m
+    crossing = centre - np.sqrt(radius_m ** 2 - s ** 2) if bends_away else centre + np.sqrt(radius_m ** 2 - s ** 2)
+    nearest = np.abs(np.hypot(s, centre) - radius_m)
+    return crossing, nearest
+
+
+def test_local_quadratic_gives_a_quadratics_value_and_derivatives_as_numpy_polyfit():
+    rng = np.random.default_rng(1)
+    s = np.sort(rng.uniform(-150, 150, 40))
+    y = 600 + 0.08 * s - 2e-4 * s ** 2 + rng.normal(0, 0.3, s.size)
+    at = 20.0
+    v, d1, d2 = local_quadratic(s, y, np.array([at]), 200.0)
+    tricube = np.clip(1 - np.abs((s - at) / 200.0) ** 3, 0, None) ** 3
+    c = np.polyfit(s - at, y, 2, w=np.sqrt(tricube))  # polyfit's weights multiply the residuals
+    assert v[0] == pytest.approx(c[2], abs=1e-6) and d1[0] == pytest.approx(c[1], abs=1e-9)
+    assert d2[0] == pytest.approx(2 * c[0], abs=1e-11)
+
+
+@pytest.mark.parametrize("bends_away", [True, False])
+@pytest.mark.parametrize("crossing_m, radius_m", [(920.0, 2600.0), (600.0, 1900.0), (-600.0, 2600.0)])
+def test_crossing_from_nearest_distances_of_a_curved_pipe(crossing_m, radius_m, bends_away):
+    """Noise-free echoes of pipes turning 22-30 degrees per km (headings up to 6 degrees): the crossing within
+    0.3 m where the nearest distance alone is metres off."""
+    s = np.arange(-200.0, 200.1, SPACING_M)
+    crossing, nearest = circle_pipe(s, crossing_m, radius_m, bends_away)
+    echo = np.sign(crossing_m) * nearest
+    got = specular_crossing(echo, s, np.zeros_like(s), s, 120.0)
+    assert np.max(np.abs(echo - crossing)) > 1.4
+    assert np.max(np.abs(got - crossing)) < 0.3
+
+
+def test_straight_pipe_crossing_is_the_nearest_distance_over_cos_a():
+    s = np.arange(0.0, 300.0, SPACING_M)
+    a = np.radians(8.0)
+    crossing = 700.0 + s * np.tan(a)
+    echo = crossing * np.cos(a)
+    np.testing.assert_allclose(specular_crossing(echo, s, np.zeros_like(s), s, 60.0), crossing, atol=1e-6)
+
+
+def test_fading_fit_recovers_the_fall_and_finds_none_in_a_diffuse_echo():
+    rng = np.random.default_rng(2)
+    sin_a = np.linspace(0.0, 0.1, 30)
+    rng_m = np.linspace(940, 960, 30)
+    spreading = -40 * np.log10(rng_m)
+    specular = -30 - 2600 * sin_a ** 2 + spreading + rng.normal(0, 1.0, 30)
+    fit = fading_fit(specular, rng_m, sin_a)
+    assert abs(fit["beta_db"] - 2600) < 3 * fit["beta_error_db"]
+    assert fit["beta_db"] > 3 * fit["beta_error_db"] and fit["span_db"] == pytest.approx(26, abs=5)
+    diffuse = fading_fit(-30 + spreading + rng.normal(0, 1.0, 30), rng_m, sin_a)
+    assert abs(diffuse["beta_db"]) < 3 * diffuse["beta_error_db"]
+    assert np.isnan(fading_fit(specular, rng_m, np.full(30, 0.05))["beta_error_db"])  # no spread in heading
+    assert np.isnan(fading_fit(specular[:3], rng_m[:3], sin_a[:3])["beta_db"])
+
+
+def _survey(smooth: bool, seed: int = 3):
+    """30 pings of a pipe 920 m to starboard (a flat seabed 230 m down, burial 1 m) turning 30 degrees per
+    km, with clutter: a smooth pipe's echoes at their nearest distances and fading out of the transmit beam,
+    or a rough pipe's at the crossings at a steady level."""
+    rng = np.random.default_rng(seed)
+    n = 30
+    s = (np.arange(n) - 5) * SPACING_M
+    crossing, nearest = circle_pipe(s, 920.0, 1900.0, bends_away=True)
+    echo = nearest if smooth else crossing
+    sin_a = np.gradient(nearest, s)
+    z = 231.0
+    level = -30 - 40 * np.log10(np.hypot(echo, z)) - (2600 * sin_a ** 2 if smooth else 0.0)
+    ping, y, depth, cf, inten = [], [], [], [], []
+    for k in range(n):
+        clutter = rng.uniform(-900, 900, 6)
+        ping += [k] * 7
+        y += [echo[k] + rng.normal(0, 0.3)] + list(clutter)
+        depth += [z] + list(230 + rng.uniform(0, 25, 6))
+        cf += [0.6] + list(rng.uniform(0.4, 0.6, 6))
+        inten += [level[k] + rng.normal(0, 1.0)] + list(rng.uniform(-110, -90, 6))
+    det = LineDetections(*(np.asarray(v, dtype=np.float64) for v in (ping, y, depth, cf, inten)))
+    det.ping = det.ping.astype(np.int64)
+    seabed = np.tile([230.0, 0.0], (n, 1))
+    nav = SurveyNavigation(n, None)
+    imaged = np.ones(n, dtype=bool)
+    nav.finish(imaged)
+    lines = survey_lines(det, seabed, np.zeros((n, 2)), imaged, nav, LineOptions())
+    return lines, crossing
+
+
+@pytest.mark.parametrize("smooth", [True, False], ids=["smooth pipe", "rough pipe"])
+def test_a_turning_smooth_pipe_is_moved_to_its_crossings_and_a_rough_one_is_not(smooth):
+    lines, crossing = _survey(smooth)
+    pipes = [(row, path) for row, path in zip(lines.rows, lines.ping_paths) if row["kind"] == "pipeline"]
+    assert len(pipes) == 1
+    row, (pings, path_y) = pipes[0]
+    assert row["specular"] == int(smooth)
+    assert np.sqrt(np.mean((path_y - crossing[pings]) ** 2)) < 0.5
