@@ -22,7 +22,7 @@ from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import SearchSize, clutter_density, line_score
 from clbeam.survey.lines import Track, TrackFrame, across_gate, find_tracks, line_burial, smooth_path
-from clbeam.survey.specular import fading_fit, specular_crossing
+from clbeam.survey.specular import fading_fit, fading_floor_db, specular_crossing
 
 log = logging.getLogger(__name__)
 
@@ -231,17 +231,19 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSi
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = _score(frame, tr, path_y, burial, options, size)
-    spec = _specular(frame, tr, path_y, sb, centre_yz, level, options.fit_length_m)
+    spec = _specular(frame, tr, path_y, sb, centre_yz, level, options)
     if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
         path_y, burial, burial_se = spec["path_y"], spec["burial_m"], spec["burial_error_m"]
     resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
     z_line = sb[ext, 0] + sb[ext, 1] * path_y + (burial if math.isfinite(burial) else 0.0)
     angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))
-    row = {"kind": line_kind(burial, burial_se, float(np.nanmedian(np.abs(angle))), options),
+    seabed_known = bool(np.isfinite(angle).any())  # pings without a seabed have no depth for the line
+    nadir_angle = float(np.nanmedian(np.abs(angle))) if seabed_known else math.nan
+    row = {"kind": line_kind(burial, burial_se, nadir_angle, options),
            "n_pings": int(m.size), "first_ping": int(ext[0]), "last_ping": int(ext[-1]),
            "mean_cf": float(np.mean(frame.cf[m])), "score": float(score),
            "burial_m": burial, "burial_std_m": spread, "burial_error_m": burial_se, "burial_resolved": int(resolved),
-           "mean_y_m": float(np.mean(path_y)), "mean_z_m": float(np.nanmean(z_line)),
+           "mean_y_m": float(np.mean(path_y)), "mean_z_m": float(np.nanmean(z_line)) if seabed_known else math.nan,
            "detected_fraction": float(m.size / ext.size), "specular": int(spec is not None)}
     return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
@@ -263,13 +265,13 @@ def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, opti
 
 
 def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray,
-              level: np.ndarray | None, half_width_m: float) -> dict | None:
+              level: np.ndarray | None, options: LineOptions) -> dict | None:
     """The line as a smooth pipe's specular echo, moved to where the pipe crosses each ping's plane
     (:func:`clbeam.survey.specular.specular_crossing`), when its burials say so (:func:`clbeam.survey.burial.
     specular_fit`: ``k`` within two standard errors of 1 and more than two from 0) or its echoes fade as a
     specular echo's (:func:`clbeam.survey.specular.fading_fit`: ``beta`` more than three standard errors
-    above 0, a predicted fall of at least 3 dB) and the burials do not say otherwise (``k`` more than two
-    standard errors below 1); else ``None``."""
+    above 0 and at least :func:`~clbeam.survey.specular.fading_floor_db`, a predicted fall of at least 3 dB)
+    and the burials do not say otherwise (``k`` more than two standard errors below 1); else ``None``."""
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     s_ext = frame.ping_s[tr.first:tr.last + 1]
@@ -283,10 +285,11 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     by_burial = finite and abs(fit["k"] - 1) <= 2 * fit["k_error"] and fit["k"] > 2 * fit["k_error"]
     not_specular = finite and fit["k"] + 2 * fit["k_error"] < 1
     fading = {"beta_db": np.nan} if level is None else fading_fit(level[m], frame.r[m], np.clip(slope[k], -1, 1))
-    by_fading = bool(fading["beta_db"] > 3 * fading["beta_error_db"] and fading["span_db"] >= 3.0)
+    by_fading = bool(fading["beta_db"] > max(3 * fading["beta_error_db"], fading_floor_db(options.beam_width_deg))
+                     and fading["span_db"] >= 3.0)
     if not (by_burial or (by_fading and not not_specular)):
         return None
-    y_c = specular_crossing(frame.y[m], frame.s[m], centre_yz[g, 0], s_ext, half_width_m)
+    y_c = specular_crossing(frame.y[m], frame.s[m], centre_yz[g, 0], s_ext, options.fit_length_m)
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
 
 

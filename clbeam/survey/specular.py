@@ -23,6 +23,8 @@ curves towards or away from the ship.  Two consequences:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -83,6 +85,13 @@ def specular_crossing(echo_y, s_m, centre_y, at_s, half_width_m: float) -> np.nd
     kappa = h2 / np.where(np.abs(cos2 - h * h2) > 0.05, cos2 - h * h2, np.nan)
     bend = np.nan_to_num(0.5 * kappa * h ** 2 * sin2, nan=0.0)
     return c_at + side * (h / np.sqrt(cos2) + bend)
+
+
+def fading_floor_db(beam_width_deg: float) -> float:
+    """The least fall (dB per unit ``sin^2 a*``) taken as a transmit beam's: a third of a Gaussian main
+    lobe's of that -3 dB width (``12 / width^2``, width in rad; the SBP29's 4.5 degrees: 1,950, of which
+    Line 4's smooth pipes show 1,250-2,000).  Lines fading more slowly lose their level for other reasons."""
+    return 12.0 / math.radians(beam_width_deg) ** 2 / 3.0
 
 
 def fading_fit(level_db, range_m, sin_a) -> dict:
