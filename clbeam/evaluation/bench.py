@@ -356,13 +356,16 @@ def time_image_command(dataset, work_dir, pings=(1, 3)) -> dict:
         src = write_ping_file(dataset.isel(ping=slice(0, n)), work / f"pings{n}.nc")
         cmd = [sys.executable, "-m", "clbeam", "--debug", "image", str(src), "-o", str(work / f"images{n}.nc"),
                "--peaks", str(work / f"peaks{n}.csv"), "-q"]
-        t0 = time.time()
-        run = subprocess.run(cmd, check=True, capture_output=True, text=True)
-        totals.append(time.time() - t0)
+        launched, t0 = time.time(), time.perf_counter()
+        run = subprocess.run(cmd, capture_output=True, text=True)
+        totals.append(time.perf_counter() - t0)
+        if run.returncode != 0:
+            raise RuntimeError(f"clbeam image failed ({run.returncode}): {run.stderr.strip().splitlines()[-1:]}")
         found = re.search(r"first ping's work starts at unix time ([0-9.]+)", run.stderr)
-        starts.append(float(found.group(1)) - t0 if found else float("nan"))
+        starts.append(float(found.group(1)) - launched if found else float("nan"))
     per_ping = (totals[1] - totals[0]) / (pings[1] - pings[0])
-    return {"pings": pings[1], "total_s": totals[1], "s_per_ping": per_ping, "start_up_s": float(np.nanmin(starts)),
+    start_up = min((v for v in starts if v == v), default=float("nan"))  # NaN: no --debug line found
+    return {"pings": pings[1], "total_s": totals[1], "s_per_ping": per_ping, "start_up_s": start_up,
             "one_time_s": totals[0] - per_ping * pings[0]}
 
 

@@ -30,10 +30,11 @@ _TIME_UNITS = re.compile(r"^\s*(\w+)\s+since\s+(\d{4}-\d{2}-\d{2}(?:[ T]\d{2}:\d
 
 def _text(value):
     """An attribute as Python: bytes decoded, one-element arrays as scalars."""
+    if isinstance(value, np.ndarray) and value.size == 1:
+        value = value.reshape(-1)[0]
+        value = value.item() if hasattr(value, "item") else value
     if isinstance(value, bytes | np.bytes_):
         return value.decode("utf-8", "replace")
-    if isinstance(value, np.ndarray) and value.size == 1:
-        return value.reshape(-1)[0].item()
     return value
 
 
@@ -53,11 +54,28 @@ def _time_decoder(attrs: dict):
     def decode(values: np.ndarray) -> np.ndarray:
         if np.issubdtype(values.dtype, np.integer):
             offsets = values.astype(np.int64) * step_ns
-        else:
-            offsets = np.round(values.astype(np.float64) * step_ns).astype(np.int64)
-        return origin + offsets.astype("timedelta64[ns]")
+            return origin + offsets.astype("timedelta64[ns]")
+        v = values.astype(np.float64)
+        offsets = np.round(np.where(np.isfinite(v), v, 0.0) * step_ns).astype(np.int64)
+        return np.where(np.isfinite(v), origin + offsets.astype("timedelta64[ns]"), np.datetime64("NaT", "ns"))
 
     return decode
+
+
+def _times_representable(variable: "PlainVariable") -> bool:
+    """Whether the variable's times all fit datetime64[ns] (years 1678-2261) and decode without overflow:
+    xarray turns the others into cftime objects (and the ping reader's dtype check explains)."""
+    raw = np.asarray(variable._var[()])
+    if raw.dtype.kind == "u":
+        return False
+    finite = raw[np.isfinite(raw)] if raw.dtype.kind == "f" else raw
+    if finite.size == 0:
+        return True
+    units = _TIME_UNITS.match(variable.raw_units)
+    step_ns = _TIME_UNITS_NS[units.group(1).lower()]
+    origin_ns = 1e9 * float(np.datetime64(units.group(2).replace(" ", "T"), "s").astype(np.int64))
+    extreme = origin_ns + np.array([finite.min(), finite.max()], dtype=np.float64) * step_ns
+    return bool(np.all(np.abs(extreme) < 2.0 ** 63 * 0.999))
 
 
 class PlainVariable:
@@ -72,10 +90,12 @@ class PlainVariable:
         self.attrs = {k: _text(v) for k, v in raw.items() if k not in _HIDDEN_ATTRS}
         self._bool = _text(raw.get("dtype")) == "bool"
         self._time = _time_decoder(self.attrs)
+        self.raw_units = str(self.attrs.get("units", ""))
         if self._time is not None:
             for key in ("units", "calendar"):
                 self.attrs.pop(key, None)
-        self.dtype = np.dtype(bool) if self._bool else (np.dtype("datetime64[ns]") if self._time else h5var.dtype)
+        stored = h5var.dtype.newbyteorder("=") if h5var.dtype.kind in "iufc" else h5var.dtype
+        self.dtype = np.dtype(bool) if self._bool else (np.dtype("datetime64[ns]") if self._time else stored)
 
     def _decode(self, values) -> np.ndarray:
         values = np.asarray(values)
@@ -170,7 +190,13 @@ def open_plain(path) -> PlainDataset | None:
                 continue
             if not isinstance(var, h5py.Dataset):
                 return _close(f)
+            if name.startswith("_nc4_non_coord_"):  # netCDF-C's name for a variable named like a dimension
+                return _close(f)
             if var.attrs.get("CLASS") == b"DIMENSION_SCALE":
+                if var.maxshape and var.maxshape[0] is None:
+                    # unlimited: netCDF-C leaves a dimension without a variable at length 0 and variables may
+                    # be shorter than the dimension (xarray pads them)
+                    return _close(f)
                 sizes[name] = int(var.shape[0])
                 if bytes(var.attrs.get("NAME", b"")).startswith(_NOT_A_VARIABLE):
                     continue
@@ -178,7 +204,7 @@ def open_plain(path) -> PlainDataset | None:
             if dims is None or not _plain(var):
                 return _close(f)
             variable = PlainVariable(name, var, dims)
-            if variable._time is False:
+            if variable._time is False or (variable._time and not _times_representable(variable)):
                 return _close(f)
             variables[name] = variable
         return PlainDataset(f, variables, sizes)

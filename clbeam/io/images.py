@@ -219,8 +219,12 @@ class ImageWriter:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, exc_type, exc, tb):
+        try:
+            self.close()
+        except Exception:
+            if exc_type is None:
+                raise  # else the error in flight (the imaging's) is the one to report
 
 
 def open_images(path) -> xr.Dataset:

@@ -269,9 +269,8 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     """The line as a smooth pipe's specular echo, moved to where the pipe crosses each ping's plane
     (:func:`clbeam.survey.specular.specular_crossing`), when its burials say so (:func:`clbeam.survey.burial.
     specular_fit`: ``k`` within two standard errors of 1 and more than two from 0) or its echoes fade as a
-    specular echo's (:func:`clbeam.survey.specular.fading_fit`: ``beta`` more than three standard errors
-    above 0 and at least :func:`~clbeam.survey.specular.fading_floor_db`, a predicted fall of at least 3 dB)
-    and the burials do not say otherwise (``k`` more than two standard errors below 1); else ``None``."""
+    specular echo's over the pings with a seabed (:func:`_fades`) and the burials do not say otherwise (``k``
+    more than two standard errors below 1); else ``None``."""
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     s_ext = frame.ping_s[tr.first:tr.last + 1]
@@ -284,13 +283,28 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     finite = math.isfinite(fit["k"])
     by_burial = finite and abs(fit["k"] - 1) <= 2 * fit["k_error"] and fit["k"] > 2 * fit["k_error"]
     not_specular = finite and fit["k"] + 2 * fit["k_error"] < 1
-    fading = {"beta_db": np.nan} if level is None else fading_fit(level[m], frame.r[m], np.clip(slope[k], -1, 1))
-    by_fading = bool(fading["beta_db"] > max(3 * fading["beta_error_db"], fading_floor_db(options.beam_width_deg))
-                     and fading["span_db"] >= 3.0)
-    if not (by_burial or (by_fading and not not_specular)):
+    # the fading alone decides only over pings with a seabed: elsewhere the echoes were not moved along their arcs
+    moved = np.isfinite(frame.b[m])
+    fades = _fades(frame, m[moved], slope[k[moved]], centre_yz[g[moved], 0], level, options)
+    if moved.sum() < 3 or not (by_burial or (fades and not not_specular)):
         return None
-    y_c = specular_crossing(frame.y[m], frame.s[m], centre_yz[g, 0], s_ext, options.fit_length_m)
+    y_c = specular_crossing(frame.y[m][moved], frame.s[m][moved], centre_yz[g[moved], 0], s_ext, options.fit_length_m)
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
+
+
+def _fades(frame: TrackFrame, members: np.ndarray, sin_a: np.ndarray, centre_y: np.ndarray,
+           level: np.ndarray | None, options: LineOptions) -> bool:
+    """Whether the line's echoes fade out of the transmit beam as it turns (:func:`clbeam.survey.specular.
+    fading_fit` on the angle off the plane ``(h / R) sin a*``): ``beta`` more than three standard errors above
+    0 and at least :func:`~clbeam.survey.specular.fading_floor_db`, a predicted fall of at least 3 dB."""
+    if level is None or members.size < 4:
+        return False
+    r = frame.r[members]
+    h_over_r = np.abs(frame.y[members] - centre_y) / np.where(r > 0, r, np.nan)
+    fading = fading_fit(level[members], r, np.clip(sin_a, -1, 1) * np.clip(h_over_r, 0, 1))
+    beta, error = fading["beta_db"], fading["beta_error_db"]
+    return bool(np.isfinite(beta) and np.isfinite(error) and beta > 3 * error
+                and beta >= fading_floor_db(options.beam_width_deg) and fading["span_db"] >= 3.0)
 
 
 def effective_gates(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> tuple[float, float]:

@@ -9,16 +9,17 @@ lies at the nearest distance ``h`` from the ship instead of at the crossing
 curves towards or away from the ship.  Two consequences:
 
 * **Position.** :func:`specular_crossing` inverts that geometry, the
-  pipe's curvature included (to second order in the heading).
+  pipe's curvature included.
 * **Evidence.** The nearest point moves off the plane by ``h sin a`` as
   the heading turns, out of the transmit beam along the track; the
   echo's level falls with it (one way, through the transmit pattern only:
   the receive array has no directivity along the track).  By the envelope
   theorem ``dh/ds = sin a*``, the sine of the heading at the nearest
-  point, so along the echoes' own path the level of a specular echo falls
-  as ``beta sin^2 a*`` (a Gaussian main lobe), while a rough pipe's diffuse
-  echo, from the plane itself, does not.  :func:`fading_fit` fits that
-  fall to the echoes' levels corrected for spherical spreading.
+  point, seen from the source at ``(h / R) sin a*`` off the plane, so along
+  the echoes' own path the level of a specular echo falls as
+  ``beta ((h / R) sin a*)^2`` (a Gaussian main lobe), while a rough pipe's
+  diffuse echo, from the plane itself, does not.  :func:`fading_fit` fits
+  that fall to the echoes' levels corrected for a line's spreading.
 """
 
 from __future__ import annotations
@@ -30,31 +31,45 @@ import numpy as np
 
 def local_quadratic(s, y, at, half_width_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Local quadratic fit of ``y(s)`` at ``at`` (tricube weights of half-width ``half_width_m``, widened
-    where fewer than four points weigh in): the value, first and second derivatives there."""
+    to 1.5 times the fourth nearest point's distance where fewer weigh in): the value, first and second
+    derivatives there.  Each fit uses only the points inside its window (memory and time grow with the
+    points, not their square)."""
     s, y, at = (np.asarray(v, dtype=np.float64) for v in (s, y, at))
-    d = s[None, :] - at[:, None]
-    reach = np.maximum(half_width_m, np.sort(np.abs(d), axis=1)[:, min(3, s.size - 1)] * 1.01)
-    u = d / reach[:, None]  # scaled: the normal equations stay well conditioned
-    w = np.clip(1 - np.abs(u) ** 3, 0, None) ** 3
-    powers = np.stack([np.ones_like(u), u, u * u], axis=-1)            # (k, n, 3)
-    gram = np.einsum("kn,kni,knj->kij", w, powers, powers) + 1e-12 * np.eye(3)
-    rhs = np.einsum("kn,kni,n->ki", w, powers, y)
-    coef = np.linalg.solve(gram, rhs[..., None])[..., 0]
-    return coef[:, 0], coef[:, 1] / reach, 2 * coef[:, 2] / reach ** 2
+    order = np.argsort(s, kind="stable")
+    s, y = s[order], y[order]
+    out = np.full((3, at.size), np.nan)
+    k = min(4, s.size)
+    for i, a in enumerate(at):
+        lo, hi = np.searchsorted(s, [a - half_width_m, a + half_width_m], side="left")
+        hi = np.searchsorted(s, a + half_width_m, side="right")
+        reach = half_width_m
+        if hi - lo < k:  # the k nearest points set the window
+            near = np.sort(np.abs(s - a))[k - 1]
+            reach = max(half_width_m, 1.5 * near)
+            lo, hi = np.searchsorted(s, a - reach, side="left"), np.searchsorted(s, a + reach, side="right")
+        u = (s[lo:hi] - a) / reach  # scaled: the normal equations stay well conditioned
+        w = np.clip(1 - np.abs(u) ** 3, 0, None) ** 3
+        basis = np.stack([np.ones_like(u), u, u * u], axis=1)
+        gram = (basis * w[:, None]).T @ basis + 1e-12 * np.eye(3)
+        coef = np.linalg.lstsq(gram, (basis * w[:, None]).T @ y[lo:hi], rcond=None)[0]
+        out[:, i] = coef[0], coef[1] / reach, 2 * coef[2] / reach ** 2
+    return out[0], out[1], out[2]
 
 
 def specular_crossing(echo_y, s_m, centre_y, at_s, half_width_m: float) -> np.ndarray:
     """Where a smooth pipe crosses the pings' planes, from its specular echoes.
 
     The echoes, moved along their arcs to the pipe's depth, lie at the
-    nearest distance ``h`` from the ship.  By the envelope theorem
-    ``h' = sin a*``, the heading at the nearest point, and
-    ``h'' = k cos^2 a* / (1 + k h)`` for a pipe of curvature ``k`` (positive
-    bending away from the ship); the crossing is then at
-    ``D = h / cos a* + k h^2 sin^2 a* / 2`` (the nearest point lies
-    ``h sin a*`` off the plane and the pipe bends by ``k x^2 / 2`` over
-    that stretch).  ``h``, ``h'`` and ``h''`` come from a local quadratic
-    fit of the echoes' distances.
+    nearest horizontal point of the pipe, offset ``u`` across the track from
+    the ship (signed).  By the envelope theorem ``|u|' = sin a*``, the
+    heading at the nearest point, and ``u'' = k cos^2 a* / (1 + k u)`` for
+    a pipe of curvature ``k`` (signed like ``u''``); the crossing lies
+    ``u tan a*`` along the pipe from the nearest point, where the pipe has
+    bent by ``k (u tan a*)^2 / 2``, so that
+    ``D = u / cos a* + u'' u^2 sin^2 a* / (2 cos^3 a* (cos^2 a* - u u''))``.
+    ``u`` and its derivatives come from a local quadratic fit of the
+    echoes' offsets less their grid centres, the centre from the same fit
+    (a centre that moves from ping to ping does not enter twice).
 
     Parameters
     ----------
@@ -69,35 +84,60 @@ def specular_crossing(echo_y, s_m, centre_y, at_s, half_width_m: float) -> np.nd
     Returns
     -------
     numpy.ndarray
-        ``(k,)`` the crossings across the track (m, on the echoes' side, from
-        the centre interpolated to ``at_s``).
+        ``(k,)`` the crossings across the track (m).
     """
     y, s, c = (np.asarray(v, dtype=np.float64) for v in (echo_y, s_m, centre_y))
     at = np.asarray(at_s, dtype=np.float64)
-    side = 1.0 if np.mean(y - c) >= 0 else -1.0
-    order = np.argsort(s, kind="stable")
-    c_at = np.interp(at, s[order], c[order])
     if np.unique(s).size < 3:
-        return c_at + side * np.interp(at, s[order], np.abs(y - c)[order])
-    h, h1, h2 = local_quadratic(s, np.abs(y - c), at, half_width_m)
-    sin2 = np.clip(h1, -0.95, 0.95) ** 2
-    cos2 = 1 - sin2
-    kappa = h2 / np.where(np.abs(cos2 - h * h2) > 0.05, cos2 - h * h2, np.nan)
-    bend = np.nan_to_num(0.5 * kappa * h ** 2 * sin2, nan=0.0)
-    return c_at + side * (h / np.sqrt(cos2) + bend)
+        order = np.argsort(s, kind="stable")
+        return np.interp(at, s[order], y[order])
+    u, u1, u2 = local_quadratic(s, y - c, at, half_width_m)
+    centre = local_quadratic(s, c, at, half_width_m)[0]
+    return centre + crossing_offset(u, u1, u2)
+
+
+def crossing_offset(u, u1, u2) -> np.ndarray:
+    """The crossing's offset from the ship (m) of the pipe whose nearest point lies at the signed offset
+    ``u`` with derivatives ``u1``, ``u2`` along the track: on the pipe's osculating circle (centre on the
+    normal through the nearest point, radius ``1 / k``), where it meets the ping's plane; ``u / cos a*`` for
+    a straight pipe or where the circle misses the plane."""
+    u, u1, u2 = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (u, u1, u2)))
+    side = np.where(u >= 0, 1.0, -1.0)
+    h, sin_a = np.abs(u), np.clip(side * u1, -0.95, 0.95)
+    cos_a = np.sqrt(1 - sin_a ** 2)
+    straight = side * h / cos_a
+    den = cos_a ** 2 - h * side * u2
+    curved = np.abs(den) > 0.05
+    kappa = np.where(curved, side * u2 / np.where(curved, den, 1.0), 0.0)
+    curved &= np.abs(kappa) > 1e-9
+    rho = 1.0 / np.where(curved, kappa, 1.0)
+    dx = sin_a * (h + rho)                     # the ping's plane from the circle's centre, along the track
+    centre_y = side * cos_a * (h + rho)        # and the centre's offset across
+    disc = rho ** 2 - dx ** 2
+    root = np.sqrt(np.where(disc > 0, disc, 0.0))
+    near = np.where(np.abs(centre_y - root - straight) < np.abs(centre_y + root - straight),
+                    centre_y - root, centre_y + root)
+    return np.where(curved & (disc > 0), near, straight)
+
+
+#: least spread of ``sin^2`` of the angle off the plane for a fading fit (0.18 degree at the plane): below it, near
+#: nadir where the source sees every nearest point in the plane, the fit has nothing to measure
+MIN_SPREAD = 1e-5
 
 
 def fading_floor_db(beam_width_deg: float) -> float:
     """The least fall (dB per unit ``sin^2 a*``) taken as a transmit beam's: a third of a Gaussian main
     lobe's of that -3 dB width (``12 / width^2``, width in rad; the SBP29's 4.5 degrees: 1,950, of which
     Line 4's smooth pipes show 1,250-2,000).  Lines fading more slowly lose their level for other reasons."""
+    if not beam_width_deg > 0:
+        return math.inf  # no beam width: no fading test
     return 12.0 / math.radians(beam_width_deg) ** 2 / 3.0
 
 
 def fading_fit(level_db, range_m, sin_a) -> dict:
     """Fit of echo levels to a specular echo's fall out of the transmit beam.
 
-    ``level_db + 20 log10(range^2)`` (spherical spreading both ways
+    ``level_db + 30 log10(range)`` (the spreading of a long pipe's echo
     removed) fitted as ``L0 - beta sin^2 a`` by least squares, the
     residual scatter estimated from the fit.
 
@@ -108,23 +148,24 @@ def fading_fit(level_db, range_m, sin_a) -> dict:
     range_m : array_like
         ``(n,)`` their slant ranges (m).
     sin_a : array_like
-        ``(n,)`` the sine of the heading at the nearest point (the slope of
-        the echoes' path, ``dh/ds``).
+        ``(n,)`` the sine of the angle off the ping's plane at which the
+        source sees the nearest point: ``(h / range) sin a*``, ``sin a*``
+        the slope of the echoes' path ``dh/ds``.
 
     Returns
     -------
     dict
         ``beta_db`` (dB per unit ``sin^2 a``; about 2,600 for the SBP29's
         3.5 m transmitter at its centre frequency), ``beta_error_db`` (its
-        standard error; NaN with fewer than four echoes or no spread in
-        heading) and ``span_db`` (the fall the fit predicts across the
+        standard error; NaN with fewer than four echoes or a spread of
+        ``sin^2 a`` under :data:`MIN_SPREAD`) and ``span_db`` (the fall the fit predicts across the
         line's headings).
     """
-    level = np.asarray(level_db, dtype=np.float64) + 40.0 * np.log10(np.maximum(np.asarray(range_m, float), 1e-3))
+    level = np.asarray(level_db, dtype=np.float64) + 30.0 * np.log10(np.maximum(np.asarray(range_m, float), 1e-3))
     x = np.asarray(sin_a, dtype=np.float64) ** 2
     ok = np.isfinite(level) & np.isfinite(x)
     out = {"beta_db": np.nan, "beta_error_db": np.nan, "span_db": np.nan}
-    if ok.sum() < 4 or np.ptp(x[ok]) <= 0:
+    if ok.sum() < 4 or np.ptp(x[ok]) < MIN_SPREAD:
         return out
     a = np.stack([np.ones(ok.sum()), -x[ok]], axis=1)
     coef, *_ = np.linalg.lstsq(a, level[ok], rcond=None)

@@ -129,3 +129,42 @@ def test_netcdf3_and_garbage_are_not_plain(tmp_path):
     junk = tmp_path / "junk.nc"
     junk.write_bytes(b"not a file of any kind")
     assert open_plain(junk) is None
+
+
+def test_unlimited_ping_dimension_and_netcdf_c_names_go_to_xarray(tmp_path):
+    """netCDF-C leaves an unlimited dimension without a variable at length 0 (xarray reads its true
+    length) and stores a variable named like a dimension as '_nc4_non_coord_<name>'."""
+    ds, pings = dataset()
+    path = tmp_path / "unlimited.nc"
+    ds.to_netcdf(path, engine="netcdf4", unlimited_dims=["ping"])
+    assert open_plain(path) is None
+    with PingFile(path) as f:
+        assert f.n_pings == 3
+        np.testing.assert_allclose(f.ping(2).samples, pings[2].samples, rtol=1e-6)
+    odd = tmp_path / "noncoord.nc"
+    ds.assign(channel=(("ping",), np.arange(3.0))).to_netcdf(odd, engine="netcdf4")
+    assert open_plain(odd) is None
+
+
+def test_attributes_times_and_byte_orders_read_as_xarray_reads_them(tmp_path):
+    """A one-element byte-string attribute, NaN and far-off times, and big-endian samples."""
+    import h5py
+
+    ds, _ = dataset(kind="analytic")
+    ds = _split(ds).assign(ping_time=(("ping",), np.array([0.0, np.nan, 8.0]),
+                                       {"units": "seconds since 2022-08-29 02:00:00"}))
+    path = tmp_path / "p.nc"
+    ds.to_netcdf(path, engine="h5netcdf", encoding={"samples_r": {"dtype": ">f4"}})
+    with h5py.File(path, "a") as f:
+        f["samples_i"].attrs["kind"] = np.array([b"analytic"], dtype="S8")
+    plain = open_plain(path)
+    assert plain["samples_i"].attrs["kind"] == "analytic"
+    assert plain["samples_r"].dtype == plain["samples_i"].dtype == np.float32
+    expected = xr.open_dataset(path)["ping_time"].values
+    np.testing.assert_array_equal(plain["ping_time"].values, expected)  # NaN -> NaT
+    assert np.isnat(plain["ping_time"].values[1])
+    plain.close()
+    far = tmp_path / "far.nc"
+    dataset()[0].assign(ping_time=(("ping",), np.array([0.0, 1.0, 2.0]),
+                                   {"units": "days since 1600-01-01"})).to_netcdf(far, engine="h5netcdf")
+    assert open_plain(far) is None  # before 1678: no datetime64[ns]; xarray makes cftime objects

@@ -49,6 +49,33 @@ def test_crossing_from_nearest_distances_of_a_curved_pipe(crossing_m, radius_m, 
     assert np.max(np.abs(got - crossing)) < 0.3
 
 
+@pytest.mark.parametrize("bends_away", [True, False])
+def test_crossing_of_a_curved_pipe_at_larger_headings(bends_away):
+    """Headings up to 14 degrees (a 2 km radius, 500 m either side): the pipe's bend between the nearest
+    point and the plane, projected on the plane (1 / cos^3 a*), matters there."""
+    s = np.arange(-500.0, 500.1, SPACING_M)
+    crossing, nearest = circle_pipe(s, 900.0, 2000.0, bends_away)
+    heading = np.degrees(np.arctan(np.abs(np.gradient(crossing, s))))
+    assert heading.max() > 13
+    got = specular_crossing(nearest, s, np.zeros_like(s), s, 120.0)
+    inner = np.abs(s) < 380  # a fit's half-width from the ends, where the local fits are one-sided
+    assert np.max(np.abs(got - crossing)[inner]) < 0.3
+
+
+def test_a_pipe_crossing_under_the_track_and_a_swaying_centre():
+    """A straight pipe at 8 degrees from 10 m to port to 25 m to starboard keeps its sign; a grid centre
+    swaying 0.3 m from ping to ping (the echoes, fixed on the seabed, barely move) does not enter the
+    crossing."""
+    rng = np.random.default_rng(5)
+    s = np.arange(0.0, 250.0, SPACING_M)
+    a = np.radians(8.0)
+    crossing = -10.0 + s * np.tan(a)
+    sway = rng.normal(0, 0.3, s.size)
+    echo = sway + (crossing - sway) * np.cos(a)  # nearest point of a straight pipe, seen from the ship
+    got = specular_crossing(echo, s, sway, s, 60.0)
+    assert np.max(np.abs(got - crossing)) < 0.05
+
+
 def test_straight_pipe_crossing_is_the_nearest_distance_over_cos_a():
     s = np.arange(0.0, 300.0, SPACING_M)
     a = np.radians(8.0)
@@ -70,6 +97,7 @@ def test_fading_fit_recovers_the_fall_and_finds_none_in_a_diffuse_echo():
     assert abs(diffuse["beta_db"]) < 3 * diffuse["beta_error_db"]
     assert np.isnan(fading_fit(specular, rng_m, np.full(30, 0.05))["beta_error_db"])  # no spread in heading
     assert np.isnan(fading_fit(specular[:3], rng_m[:3], sin_a[:3])["beta_db"])
+    assert np.isnan(fading_fit(specular, rng_m, np.linspace(0, 0.003, 30))["beta_db"])  # near nadir: no spread
     # a Gaussian main lobe of -3 dB width w falls 3 dB at sin a = w / 2: 12 / w^2 per unit sin^2, a third of it
     w = np.radians(4.5)
     assert fading_floor_db(4.5) == pytest.approx(3.0 / (w / 2) ** 2 / 3)
@@ -78,10 +106,9 @@ def test_fading_fit_recovers_the_fall_and_finds_none_in_a_diffuse_echo():
 def _survey(kind: str, seed: int = 3):
     """30 pings of a pipe 920 m to starboard (a flat seabed 230 m down, burial 1 m) turning 30 degrees per
     km, with clutter: a smooth pipe's echoes at their nearest distances and fading out of the transmit beam;
-    a rough pipe's at the crossings at a steady level; or a rough pipe at 10-17 degrees to the track whose
-    level falls 400 dB per unit sin^2 a (22 dB over the line, significant, but slower than the transmit
-    beam's fall: fading_floor_db is 650 for the 4.5 degree beam), its pings without a seabed (no burials:
-    the fading alone decides)."""
+    a rough pipe's at the crossings at a steady level; or a rough pipe at 2-9 degrees to the track whose
+    level falls 400 dB per unit sin^2 a (significant, but slower than the transmit beam's fall; its burials
+    lack the specular echo's extra depth, k = 0.0 +- 0.3)."""
     rng = np.random.default_rng(seed)
     n = 30
     s = (np.arange(n) - 5) * SPACING_M
@@ -89,8 +116,7 @@ def _survey(kind: str, seed: int = 3):
     fade_db = {"smooth": 2600.0, "rough": 0.0, "rough, oblique": 400.0}[kind]
     seabed = np.tile([230.0, 0.0], (n, 1))
     if kind == "rough, oblique":
-        crossing = 920.0 + s * np.tan(np.radians(12.0)) + s ** 2 / (2 * 1900.0)
-        seabed[:] = np.nan
+        crossing = 920.0 + s * np.tan(np.radians(3.0)) + s ** 2 / (2 * 1900.0)
     echo = nearest if kind == "smooth" else crossing
     slope = np.gradient(echo, s)
     z = 231.0
@@ -121,3 +147,29 @@ def test_a_turning_smooth_pipe_is_moved_to_its_crossings_and_a_rough_one_is_not(
     row, (pings, path_y) = pipes[0]
     assert row["specular"] == int(kind == "smooth")
     assert np.sqrt(np.mean((path_y - crossing[pings]) ** 2)) < 0.5
+
+
+def test_fading_verdict_needs_a_beams_fall_not_just_a_significant_one():
+    """:func:`_fades` on echoes 920 m out whose level falls 2600 or 400 dB per unit sin^2 of the angle off the
+    plane: the 4.5 degree beam's floor is 650 (400 fails although significant); a 9 degree beam's is 163."""
+    from types import SimpleNamespace
+
+    from clbeam.survey.line_products import _fades
+
+    rng = np.random.default_rng(4)
+    n = 30
+    sin_a = np.linspace(0.02, 0.14, n)
+    y, r = np.full(n, 920.0), np.full(n, 948.5)
+    frame = SimpleNamespace(y=y, r=r)
+    members = np.arange(n)
+
+    def level(beta):
+        return -30 - 30 * np.log10(r) - beta * (sin_a * y / r) ** 2 + rng.normal(0, 1.0, n)
+
+    narrow, wide = LineOptions(), LineOptions(beam_width_deg=9.0)
+    assert _fades(frame, members, sin_a, np.zeros(n), level(2600.0), narrow)
+    slow = level(400.0)
+    assert fading_fit(slow, r, sin_a * y / r)["beta_db"] > 3 * fading_fit(slow, r, sin_a * y / r)["beta_error_db"]
+    assert not _fades(frame, members, sin_a, np.zeros(n), slow, narrow)
+    assert _fades(frame, members, sin_a, np.zeros(n), slow, wide)
+    assert not _fades(frame, members, sin_a, np.zeros(n), None, narrow)
