@@ -40,8 +40,7 @@ def local_quadratic(s, y, at, half_width_m: float) -> tuple[np.ndarray, np.ndarr
     out = np.full((3, at.size), np.nan)
     k = min(4, s.size)
     for i, a in enumerate(at):
-        lo, hi = np.searchsorted(s, [a - half_width_m, a + half_width_m], side="left")
-        hi = np.searchsorted(s, a + half_width_m, side="right")
+        lo, hi = np.searchsorted(s, a - half_width_m, side="left"), np.searchsorted(s, a + half_width_m, side="right")
         reach = half_width_m
         if hi - lo < k:  # the k nearest points set the window
             near = np.sort(np.abs(s - a))[k - 1]
