@@ -83,8 +83,10 @@ def false_rate(runs: list, thresholds=(-2, -1, 0, 1, 2, 3, 4, 5)) -> list:
         over = [r for r in kept if r["score"] >= s]
         n_pipe = sum(r["kind"] == "pipeline" for r in over)
         rows.append(f"| {s:g} | {n_pipe} | {n_pipe / km:.2f} | {len(over)} |")
-    return [f"{len(runs)} clutter-only survey(s), {km:.2f} km", "", "| min score | pipeline lines | per km | "
-            "lines of any kind |", "|---|---|---|---|"] + rows
+    chance = [r["score"] for r in kept if r["kind"] == "pipeline"]
+    best = f"the best chance pipeline line scores {max(chance):.1f}" if chance else "no chance pipeline line at all"
+    return [f"{len(runs)} clutter-only survey(s), {km:.2f} km; {best} ({len(chance)} pipeline-kind track(s) of any "
+            "score)", "", "| min score | pipeline lines | per km | lines of any kind |", "|---|---|---|---|"] + rows
 
 
 def time_thousand_pings(density_per_m: float = 0.05, n_pings: int = 1000) -> str:
@@ -125,7 +127,9 @@ def main(argv=None) -> None:
         t0 = time.perf_counter()
         res, nc, out, opts = survey_scene(spec, args.work, LineOptions())
         table += scene_rows(spec, res.products, nc)
-        print(f"{spec}: surveyed in {time.perf_counter() - t0:.0f} s, {res.products.n_pipelines} pipeline line(s)")
+        scores = [r["score"] for r in res.products.lines.rows if r["kind"] == "pipeline"]
+        print(f"{spec}: surveyed in {time.perf_counter() - t0:.0f} s, {res.products.n_pipelines} pipeline line(s)"
+              + (f" scoring {min(scores):.1f}-{max(scores):.1f}" if scores else ""))
         if spec.startswith("clutter"):
             clutter.append((out, opts))
     if clutter:

@@ -20,7 +20,7 @@ from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LI
 from clbeam.survey.burial import arc_constrained, specular_fit
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
-from clbeam.survey.line_score import SearchSize, clutter_density, line_score
+from clbeam.survey.line_score import SearchSize, clutter_hit_rate, copy_offsets, line_score
 from clbeam.survey.lines import Track, TrackFrame, across_gate, find_tracks, line_burial, smooth_path
 from clbeam.survey.specular import fading_fit, fading_floor_db, specular_crossing
 
@@ -215,10 +215,11 @@ def _search_size(frame: TrackFrame) -> SearchSize:
     detection far out moves no score)."""
     spacing = float(np.median(np.diff(frame.ping_s))) if frame.ping_s.size > 1 else 1.0
     b = frame.b[np.isfinite(frame.b)]
+    y_lo, y_hi = (float(v) for v in np.percentile(frame.y, [1, 99])) if frame.y.size else (0.0, 0.0)
 
     def span(v):
         return float(np.subtract(*np.percentile(v, [99, 1]))) if v.size else 0.0
-    return SearchSize(spacing_m=max(spacing, 1e-3), swath_m=span(frame.y), burial_span_m=span(b))
+    return SearchSize(spacing_m=max(spacing, 1e-3), swath_m=y_hi - y_lo, burial_span_m=span(b), y_range_m=(y_lo, y_hi))
 
 
 def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSize, pings_info: tuple,
@@ -251,17 +252,19 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSi
 def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, options: LineOptions,
            size: SearchSize) -> float:
     """The line's score (:func:`clbeam.survey.line_score.line_score`) in the frame its detections were found in:
-    the hits are the members within the (narrowed) gates, the clutter the other detections of its pings."""
+    the hits are the members within the (narrowed) gates, the clutter the other detections of its pings, counted
+    on copies of its path (:func:`clbeam.survey.line_score.clutter_hit_rate`)."""
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     gate_y, gate_b = effective_gates(frame, tr, path_y, options)
     at = np.searchsorted(ext, frame.ping[m])
     hits = int(np.sum(np.abs(frame.y[m] - path_y[at]) <= gate_y))
     others = np.setdiff1d(np.arange(int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])), m)
-    line_y_at = path_y[np.searchsorted(ext, frame.ping[others])]
-    density = clutter_density(frame.y[others], frame.b[others], line_y_at, burial, n_pings=ext.size,
-                              across_gate_m=gate_y, burial_gate_m=gate_b, burial_half_m=max(3.0, 1.5 * gate_b))
-    return line_score(hits, ext.size, density, gate_y, gate_b, size, options.max_angle_deg)
+    at_others = np.searchsorted(ext, frame.ping[others])
+    offsets = copy_offsets(path_y, gate_y, size.y_range_m)
+    p_hit = clutter_hit_rate(frame.y[others] - path_y[at_others], frame.b[others], at_others, ext.size, burial,
+                             gate_y, gate_b, offsets)
+    return line_score(hits, ext.size, p_hit, gate_y, gate_b, size, options.max_angle_deg)
 
 
 def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray,

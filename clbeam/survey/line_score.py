@@ -3,11 +3,10 @@
 A-contrario scoring (Desolneux, Moisan & Morel, *From Gestalt Theory to
 Image Analysis*, 2008): a line spans ``K`` imaged pings and has a detection
 on it in ``h`` of them.  Were the detections around it clutter scattered at
-random, with the density ``lambda`` measured around the line in the same
-survey (detections per metre across, per metre of burial, per ping),
-a ping would put one inside the line's gate (``2 w`` across by ``2 d`` in
-burial) with probability ``p = 1 - exp(-lambda 2w 2d)``, and ``h`` of ``K``
-pings or more with the binomial tail ``P``.  The search tries many lines:
+random, a ping would put one inside the line's gates (``2 w`` across by
+``2 d`` in burial) with a probability ``p`` measured in the same survey on
+copies of the line's path shifted across (:func:`clutter_hit_rate`), and
+``h`` of ``K`` pings or more with the binomial tail ``P``.  The search tries many lines:
 per km of survey line about
 
     N = (1000 / spacing) x (swath / 2w) x (burial span / 2d)
@@ -41,11 +40,15 @@ class SearchSize:
         Cross-track extent of the detections (m).
     burial_span_m : float
         Burial (or depth) extent of the detections (m).
+    y_range_m : tuple of float
+        The detections' extent across, least and greatest offset (m): where
+        the copies of a line for its clutter may lie (:func:`copy_offsets`).
     """
 
     spacing_m: float
     swath_m: float
     burial_span_m: float
+    y_range_m: tuple[float, float] = (-math.inf, math.inf)
 
 
 def tests_per_km(size: SearchSize, n_pings: int, across_gate_m: float, burial_gate_m: float,
@@ -75,7 +78,7 @@ def log10_binomial_tail(hits: int, trials: int, p: float) -> float:
     return (top + math.log(float(np.exp(terms - top).sum()))) / math.log(10)
 
 
-def line_score(hits: int, trials: int, density: float, across_gate_m: float, burial_gate_m: float,
+def line_score(hits: int, trials: int, p_hit: float, across_gate_m: float, burial_gate_m: float,
                size: SearchSize, max_angle_deg: float) -> float:
     """Score of a line: ``-log10`` of the expected number of chance lines as good per km.
 
@@ -83,9 +86,9 @@ def line_score(hits: int, trials: int, density: float, across_gate_m: float, bur
     ----------
     hits, trials : int
         Pings with a detection on the line, and imaged pings along its extent.
-    density : float
-        Clutter around it: detections per metre across, per metre of
-        burial, per ping.
+    p_hit : float
+        Probability that clutter alone puts a detection inside the line's
+        gates in one ping (:func:`clutter_hit_rate`).
     across_gate_m, burial_gate_m : float
         Half-widths of the line's gate (m).
     size : SearchSize
@@ -95,43 +98,76 @@ def line_score(hits: int, trials: int, density: float, across_gate_m: float, bur
     Returns
     -------
     float
-        The score (higher: less likely by chance); ``inf`` without clutter.
+        The score (higher: less likely by chance).
     """
-    p = -math.expm1(-density * 2 * across_gate_m * 2 * burial_gate_m)
-    log_p = log10_binomial_tail(hits, trials, p)
+    log_p = log10_binomial_tail(hits, trials, p_hit)
     n = tests_per_km(size, trials, across_gate_m, burial_gate_m, max_angle_deg)
     return -(math.log10(n) + log_p)
 
 
-def clutter_density(y: np.ndarray, b: np.ndarray, line_y: np.ndarray, line_b: float, *, n_pings: int,
-                    across_gate_m: float, burial_gate_m: float, half_width_m: float = 50.0,
-                    burial_half_m: float = 3.0) -> float:
-    """Detections per metre across, per metre of burial, per ping around a line, off it.
+def copy_offsets(path_y: np.ndarray, across_gate_m: float, y_span: tuple[float, float], *,
+                 half_width_m: float = 50.0, min_copies: int = 4) -> np.ndarray:
+    """Offsets (m) of the copies of a line's path on which its clutter is counted (:func:`clutter_hit_rate`).
+
+    Steps of two gates from two gates out to ``half_width_m`` (at least
+    eight gates) on both sides, kept where the whole copy lies within
+    ``y_span`` (the detections' extent across, m): a copy beyond the swath
+    has no clutter to count.  Where fewer than ``min_copies`` fit, the
+    nearest ``min_copies`` are used as they are.
+    """
+    step = 2 * across_gate_m
+    n = max(int(max(half_width_m, 8 * across_gate_m) // step), 2)
+    offsets = step * np.r_[-np.arange(2, n + 1), np.arange(2, n + 1)].astype(np.float64)
+    inside = (path_y.min() + offsets >= y_span[0]) & (path_y.max() + offsets <= y_span[1])
+    if inside.sum() >= min_copies:
+        return offsets[inside]
+    return offsets[np.argsort(np.abs(offsets), kind="stable")[:min_copies]]
+
+
+def clutter_hit_rate(dy: np.ndarray, b: np.ndarray, ping_index: np.ndarray, n_pings: int, line_b: float,
+                     across_gate_m: float, burial_gate_m: float, offsets_m: np.ndarray) -> float:
+    """Probability that clutter alone puts a detection inside a line's gates in one ping, measured in the survey.
+
+    The line's path is copied across at ``offsets_m`` (:func:`copy_offsets`)
+    with its own gates and burial; each copy counts its pings with a detection
+    inside, and the rate is the copies' mean count over ``n_pings``, a fifth
+    of the copies off each end (a copy over another line or the nadir's echo
+    is not clutter).  Measured this way, clutter that gathers at the line's
+    burial (peaks moved along their arcs to the burial prior, far from
+    nadir) or thickens with range counts as it is, where a density averaged
+    over burial and across would understate it.
 
     Parameters
     ----------
-    y, b : numpy.ndarray
-        ``(n,)`` offsets and burials (m) of the detections of the line's
-        pings that are not on it.
-    line_y : numpy.ndarray
-        ``(n,)`` the line's offset at each of those detections' pings (m).
-    line_b : float
-        The line's burial (m; NaN: burial not used).
+    dy : numpy.ndarray
+        ``(n,)`` offsets (m) across of the detections off the line from
+        the line's path at their pings.
+    b : numpy.ndarray
+        ``(n,)`` their burials (m).
+    ping_index : numpy.ndarray
+        ``(n,)`` their pings, as indices ``0 .. n_pings - 1`` along the line.
     n_pings : int
         Imaged pings along the line.
+    line_b : float
+        The line's burial (m; NaN: burial not used).
     across_gate_m, burial_gate_m : float
-        The line's gate (m), left out of the count.
-    half_width_m, burial_half_m : float
-        Half-extent of the neighbourhood counted (m; across, at least four gates).
+        Half-widths of the line's gates (m).
+    offsets_m : numpy.ndarray
+        The copies' offsets (m).
+
+    Returns
+    -------
+    float
+        The probability, at least ``1 / (n_pings * copies)``: one clutter
+        detection is assumed even where none was seen (a line in empty
+        water is not infinitely sure).
     """
-    half_width_m = max(half_width_m, 4 * across_gate_m)  # the neighbourhood always reaches beyond the gate
-    dy = np.abs(y - line_y)
-    near = (dy <= half_width_m) & (dy > across_gate_m)
-    if math.isfinite(line_b):
-        near &= np.abs(b - line_b) <= burial_half_m
-        burial_extent = 2 * burial_half_m
-    else:
-        burial_extent = 2 * burial_gate_m  # depth not used: one burial cell
-    area = max(n_pings, 1) * 2 * (half_width_m - across_gate_m) * burial_extent
-    # one clutter detection is assumed present even where none was seen: a line in empty water is not infinitely sure
-    return max(int(near.sum()), 1) / area
+    from scipy.stats import trim_mean
+
+    n_pings = max(int(n_pings), 1)
+    keep = np.abs(b - line_b) <= burial_gate_m if math.isfinite(line_b) else np.ones(dy.size, dtype=bool)
+    dy, pings = dy[keep], ping_index[keep]
+    counts = np.array([np.unique(pings[np.abs(dy - off) <= across_gate_m]).size for off in offsets_m], np.float64)
+    if counts.size == 0:
+        return 1.0 / n_pings
+    return max(float(trim_mean(counts, 0.2)) / n_pings, 1.0 / (n_pings * counts.size))

@@ -139,7 +139,7 @@ def test_score_is_minus_log10_of_tests_times_tail():
     n = n_tests_per_km(size, 40, 1.5, 0.5, 60.0)
     # by hand: starts 125/km, offsets 1400/3, burials 27, headings 2 tan60 320 m / 3 m + 1, lengths 40
     assert n == pytest.approx(125 * (1400 / 3) * 27 * (2 * math.tan(math.radians(60)) * 320 / 3 + 1) * 40)
-    s = line_score(30, 40, density, 1.5, 0.5, size, 60.0)
+    s = line_score(30, 40, p, 1.5, 0.5, size, 60.0)
     assert s == pytest.approx(-(math.log10(n) + binom.logsf(29, 40, p) / math.log(10)))
 
 
@@ -152,8 +152,8 @@ def test_clutter_alone_gives_fewer_chance_lines_than_the_score_promises():
     frame, _ = synthetic_frame(500, [], 0.1, seed=5)
     tracks = find_tracks(frame, LineOptions())
     size = SearchSize(spacing_m=SPACING, swath_m=SWATH[1] - SWATH[0], burial_span_m=BURIAL_RANGE[1] - BURIAL_RANGE[0])
-    density = 0.1 / (BURIAL_RANGE[1] - BURIAL_RANGE[0])
-    scores = [line_score(t.members.size, t.last - t.first + 1, density, 1.5, 0.5, size, 60.0) for t in tracks]
+    p = -math.expm1(-0.1 / (BURIAL_RANGE[1] - BURIAL_RANGE[0]) * 2 * 1.5 * 2 * 0.5)  # Poisson clutter in the gates
+    scores = [line_score(t.members.size, t.last - t.first + 1, p, 1.5, 0.5, size, 60.0) for t in tracks]
     km = 500 * SPACING / 1000
     assert sum(s >= 0 for s in scores) <= 1.0 * km
     assert sum(s >= LineOptions().min_score for s in scores) <= 0.1 * km + 1

@@ -1,0 +1,116 @@
+"""The clutter a line is scored against, measured on copies of its path: against the closed form of Poisson
+clutter (uniform in burial, or gathered at one burial as far-angle peaks moved to the burial prior are), robust
+to a copy over another line, and a survey of persistent far-angle seabed scatterers with one pipe in it: the
+pipe is the only pipeline line."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import erf
+
+from clbeam.survey.georef import SurveyNavigation
+from clbeam.survey.line_options import LineOptions
+from clbeam.survey.line_products import LineDetections, survey_lines
+from clbeam.survey.line_score import clutter_hit_rate, copy_offsets
+
+N_PINGS = 100
+GATE_Y, GATE_B = 1.5, 0.5
+
+
+def poisson_clutter(per_m: float, y_range: tuple, burials, rng):
+    """Clutter of ``N_PINGS`` pings: per ping a Poisson number of detections (``per_m`` per metre across),
+    uniform across ``y_range``, burials drawn by ``burials(n)``; ``(ping, y, b)``."""
+    ping, y = [], []
+    for k in range(N_PINGS):
+        n = rng.poisson(per_m * (y_range[1] - y_range[0]))
+        ping += [k] * n
+        y += list(rng.uniform(*y_range, n))
+    ping, y = np.asarray(ping), np.asarray(y)
+    return ping, y, burials(ping.size)
+
+
+def measured_rate(ping, y, b, path_y, line_b):
+    offsets = copy_offsets(path_y, GATE_Y, (-700.0, 700.0))
+    return clutter_hit_rate(y - path_y[ping], b, ping, N_PINGS, line_b, GATE_Y, GATE_B, offsets), offsets.size
+
+
+@pytest.mark.parametrize("gathered", [False, True])
+def test_hit_rate_of_poisson_clutter_is_the_closed_form(gathered):
+    """Uniform in burial over 27 m, the gate holds 1/27 of the clutter; gathered as N(1, 0.3) m, erf(0.5 /
+    (0.3 sqrt 2)) of it (89 %, where a density averaged over 6 m of burial would see a sixth)."""
+    rng = np.random.default_rng(3)
+    per_m = 0.3
+    if gathered:
+        burials, share = (lambda n: rng.normal(1.0, 0.3, n)), erf(GATE_B / (0.3 * math.sqrt(2)))
+    else:
+        burials, share = (lambda n: rng.uniform(-2, 25, n)), 2 * GATE_B / 27
+    ping, y, b = poisson_clutter(per_m, (200.0, 500.0), burials, rng)
+    path_y = 350 + 0.05 * np.arange(N_PINGS)  # a line slowly leaving the track
+    p, copies = measured_rate(ping, y, b, path_y, 1.0)
+    expected = -math.expm1(-per_m * 2 * GATE_Y * share)
+    assert copies == 30
+    assert p == pytest.approx(expected, abs=4 * math.sqrt(expected * (1 - expected) / (copies * N_PINGS)))
+
+
+def test_a_copy_over_another_line_or_beyond_the_swath_does_not_count_as_clutter():
+    rng = np.random.default_rng(4)
+    ping, y, b = poisson_clutter(0.05, (-700.0, 700.0), lambda n: rng.uniform(-2, 25, n), rng)
+    path_y = np.full(N_PINGS, -400.0)
+    clean, copies = measured_rate(ping, y, b, path_y, 1.0)
+    # another pipe 9 m away, on one of the copies, in every ping
+    with_pipe = measured_rate(np.r_[ping, np.arange(N_PINGS)], np.r_[y, np.full(N_PINGS, -391.0)],
+                              np.r_[b, np.full(N_PINGS, 1.0)], path_y, 1.0)[0]
+    assert with_pipe == pytest.approx(clean, abs=0.2 / copies)  # a plain mean moves by 1 / copies
+    # near the swath's edge only the copies inside it are counted; none inside: the nearest four
+    edge = copy_offsets(np.linspace(680.0, 695.0, N_PINGS), GATE_Y, (-700.0, 700.0))
+    assert edge.size == 15 and np.all(edge < 0) and 695 + edge.max() <= 700
+    assert sorted(np.abs(copy_offsets(np.zeros(3), GATE_Y, (-5.0, 5.0)))) == [6.0, 6.0, 9.0, 9.0]
+    # no clutter at all: one detection is assumed over the copies
+    assert measured_rate(ping[:0], y[:0], b[:0], path_y, 1.0)[0] == pytest.approx(1 / (copies * N_PINGS))
+
+
+def far_angle_survey(rng, n_pings: int = 120, spacing_m: float = 8.2):
+    """Seabed scatterers 250-450 m out on both sides, each seen for the pings whose 4.5 degree transmit beam
+    holds it (about three), its peak slid along its arc by 0.3 deg / cos(theta) as the imager's are, and a pipe
+    1.5 m deep at -350 m in 95 % of the pings (its stronger echo slides 0.1 deg / cos(theta)); water 230 m
+    deep, the grid centre at the surface."""
+    depth, beam = 230.0, math.radians(4.5)
+    n_scat = rng.poisson(0.014 * 400 * (n_pings * spacing_m + 60))
+    s_sc, y_sc = rng.uniform(-30, n_pings * spacing_m + 30, n_scat), rng.uniform(250, 450, n_scat)
+    y_sc *= rng.choice([-1, 1], n_scat)
+    z_sc = depth + rng.uniform(-0.3, 0.3, n_scat)
+    ping, y, z = [], [], []
+    for k in range(n_pings):
+        seen = (np.abs(s_sc - k * spacing_m) <= 0.5 * beam * np.hypot(y_sc, z_sc)) & (rng.random(n_scat) < 0.8)
+        yk, zk = list(y_sc[seen]), list(z_sc[seen])
+        slide = np.full(len(yk), 0.3)
+        if rng.random() < 0.95:  # a strong echo: its peak slides less
+            yk.append(-350.0)
+            zk.append(depth + 1.5)
+            slide = np.r_[slide, 0.1]
+        r, theta = np.hypot(yk, zk), np.arctan2(yk, zk)
+        theta = theta + np.radians(slide) / np.cos(theta) * rng.normal(size=theta.size)
+        ping += [k] * r.size
+        y += list(r * np.sin(theta))
+        z += list(r * np.cos(theta))
+    ping = np.asarray(ping)
+    cf = rng.uniform(0.4, 0.7, ping.size)
+    return LineDetections(ping=ping, y=np.asarray(y), z=np.asarray(z), cf=cf), np.tile([depth, 0.0], (n_pings, 1))
+
+
+@pytest.mark.slow
+def test_persistent_far_angle_seabed_scatterers_make_no_pipeline_line_and_the_pipe_among_them_one():
+    """The clutter of the simulated surveys' false lines (docs/lines.md): scatterers in the beam for several
+    pings, their peaks moved to the burial prior's depth, so their burials gather at about 1 m."""
+    rng = np.random.default_rng(7)
+    det, seabed = far_angle_survey(rng)
+    n = seabed.shape[0]
+    nav = SurveyNavigation(n, None)
+    imaged = np.ones(n, dtype=bool)
+    nav.finish(imaged)
+    lines = survey_lines(det, seabed, np.zeros((n, 2)), imaged, nav, LineOptions())
+    pipes = [r for r in lines.rows if r["kind"] == "pipeline"]
+    assert len(pipes) == 1 and abs(pipes[0]["mean_y_m"] + 350) < 2 and pipes[0]["n_pings"] >= 0.9 * n
