@@ -68,7 +68,7 @@ def scene_rows(name: str, products, nc: Path) -> list:
     return out
 
 
-def false_rate(runs: list, thresholds=(-2, -1, 0, 1, 2, 3, 4, 5)) -> list:
+def false_rate(runs: list, thresholds=(-6, -4, -2, 0, 2, 4, 6)) -> list:
     """Pipeline lines (and lines of any kind) per km against the score threshold over clutter-only surveys
     (the lines built once with no threshold, counted by score); ``runs``: ``(store, options)``."""
     rows, km = [], 0.0

@@ -20,7 +20,7 @@ from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LI
 from clbeam.survey.burial import arc_constrained, specular_fit
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
-from clbeam.survey.line_score import SearchSize, clutter_hit_rate, copy_offsets, line_score
+from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
 from clbeam.survey.lines import Track, TrackFrame, across_gate, find_tracks, line_burial, smooth_path
 from clbeam.survey.specular import fading_fit, fading_floor_db, specular_crossing
 
@@ -253,17 +253,18 @@ def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, opti
            size: SearchSize) -> float:
     """The line's score (:func:`clbeam.survey.line_score.line_score`) in the frame its detections were found in:
     the hits are the members within the (narrowed) gates, the clutter the other detections of its pings, counted
-    on copies of its path (:func:`clbeam.survey.line_score.clutter_hit_rate`)."""
+    on copies of its path (:func:`clbeam.survey.line_score.clutter_hit_rate`), both at each CF level."""
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     gate_y, gate_b = effective_gates(frame, tr, path_y, options)
     at = np.searchsorted(ext, frame.ping[m])
-    hits = int(np.sum(np.abs(frame.y[m] - path_y[at]) <= gate_y))
+    on = np.abs(frame.y[m] - path_y[at]) <= gate_y
+    hits = [np.unique(frame.ping[m][on & (frame.cf[m] >= level)]).size for level in CF_LEVELS]
     others = np.setdiff1d(np.arange(int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])), m)
     at_others = np.searchsorted(ext, frame.ping[others])
     offsets = copy_offsets(path_y, gate_y, size.y_range_m)
     p_hit = clutter_hit_rate(frame.y[others] - path_y[at_others], frame.b[others], at_others, ext.size, burial,
-                             gate_y, gate_b, offsets)
+                             gate_y, gate_b, offsets, cf=frame.cf[others], cf_levels=CF_LEVELS)
     return line_score(hits, ext.size, p_hit, gate_y, gate_b, size, options.max_angle_deg)
 
 

@@ -6,14 +6,15 @@ on it in ``h`` of them.  Were the detections around it clutter scattered at
 random, a ping would put one inside the line's gates (``2 w`` across by
 ``2 d`` in burial) with a probability ``p`` measured in the same survey on
 copies of the line's path shifted across (:func:`clutter_hit_rate`), and
-``h`` of ``K`` pings or more with the binomial tail ``P``.  The search tries many lines:
-per km of survey line about
+``h`` of ``K`` pings or more with the binomial tail ``P``, hits and clutter
+both counted at several CF levels and the best level kept (:data:`CF_LEVELS`).
+The search tries many lines: per km of survey line about
 
     N = (1000 / spacing) x (swath / 2w) x (burial span / 2d)
-        x (2 tan(max angle) K spacing / 2w + 1) x K
+        x (2 tan(max angle) K spacing / 2w + 1) x K x levels
 
 (start ping, cross-track offset, burial, heading within the window of
-headings, length), so ``N P`` is the expected number of chance lines as good
+headings, length, CF level), so ``N P`` is the expected number of chance lines as good
 per km, and the score is ``-log10(N P)``: a score of 1 is one false line in
 10 km, if the clutter were independent from ping to ping.  It is not quite
 (a seabed scatterer stays in the beam for several pings), so the default
@@ -78,17 +79,29 @@ def log10_binomial_tail(hits: int, trials: int, p: float) -> float:
     return (top + math.log(float(np.exp(terms - top).sum()))) / math.log(10)
 
 
-def line_score(hits: int, trials: int, p_hit: float, across_gate_m: float, burial_gate_m: float,
+#: CF levels a line is scored at (its hits, and the clutter's, counted at CF >= each): the strongest gives the
+#: score, the levels' number joins the tests.  0 counts every detection (all are above the map threshold).
+CF_LEVELS = (0.0, 0.5, 0.6, 0.7, 0.8)
+
+
+def line_score(hits, trials: int, p_hit, across_gate_m: float, burial_gate_m: float,
                size: SearchSize, max_angle_deg: float) -> float:
     """Score of a line: ``-log10`` of the expected number of chance lines as good per km.
 
+    With hits and clutter counted at several CF levels (:data:`CF_LEVELS`),
+    the best level's score less ``log10`` of the number of levels: a line
+    of strong echoes through weak clutter stands out at a high level where
+    every detection counted would not (a union bound over the levels tried).
+
     Parameters
     ----------
-    hits, trials : int
-        Pings with a detection on the line, and imaged pings along its extent.
-    p_hit : float
+    hits : int or sequence of int
+        Pings with a detection on the line (per CF level), of ``trials``.
+    trials : int
+        Imaged pings along the line's extent.
+    p_hit : float or sequence of float
         Probability that clutter alone puts a detection inside the line's
-        gates in one ping (:func:`clutter_hit_rate`).
+        gates in one ping (per CF level; :func:`clutter_hit_rate`).
     across_gate_m, burial_gate_m : float
         Half-widths of the line's gate (m).
     size : SearchSize
@@ -100,8 +113,9 @@ def line_score(hits: int, trials: int, p_hit: float, across_gate_m: float, buria
     float
         The score (higher: less likely by chance).
     """
-    log_p = log10_binomial_tail(hits, trials, p_hit)
-    n = tests_per_km(size, trials, across_gate_m, burial_gate_m, max_angle_deg)
+    hits, p_hit = np.atleast_1d(hits), np.atleast_1d(p_hit)
+    log_p = min(log10_binomial_tail(int(h), trials, float(p)) for h, p in zip(hits, p_hit))
+    n = tests_per_km(size, trials, across_gate_m, burial_gate_m, max_angle_deg) * hits.size
     return -(math.log10(n) + log_p)
 
 
@@ -125,17 +139,18 @@ def copy_offsets(path_y: np.ndarray, across_gate_m: float, y_span: tuple[float, 
 
 
 def clutter_hit_rate(dy: np.ndarray, b: np.ndarray, ping_index: np.ndarray, n_pings: int, line_b: float,
-                     across_gate_m: float, burial_gate_m: float, offsets_m: np.ndarray) -> float:
+                     across_gate_m: float, burial_gate_m: float, offsets_m: np.ndarray, *,
+                     cf: np.ndarray | None = None, cf_levels=(0.0,)) -> np.ndarray:
     """Probability that clutter alone puts a detection inside a line's gates in one ping, measured in the survey.
 
     The line's path is copied across at ``offsets_m`` (:func:`copy_offsets`)
     with its own gates and burial; each copy counts its pings with a detection
-    inside, and the rate is the copies' mean count over ``n_pings``, a fifth
-    of the copies off each end (a copy over another line or the nadir's echo
-    is not clutter).  Measured this way, clutter that gathers at the line's
-    burial (peaks moved along their arcs to the burial prior, far from
-    nadir) or thickens with range counts as it is, where a density averaged
-    over burial and across would understate it.
+    inside (of CF at least each level), and the rate is the copies' mean
+    count over ``n_pings``, a fifth of the copies off each end (a copy over
+    another line or the nadir's echo is not clutter).  Measured this way,
+    clutter that gathers at the line's burial (peaks moved along their arcs
+    to the burial prior, far from nadir) or thickens with range counts as it
+    is, where a density averaged over burial and across would understate it.
 
     Parameters
     ----------
@@ -154,20 +169,32 @@ def clutter_hit_rate(dy: np.ndarray, b: np.ndarray, ping_index: np.ndarray, n_pi
         Half-widths of the line's gates (m).
     offsets_m : numpy.ndarray
         The copies' offsets (m).
+    cf : numpy.ndarray, optional
+        ``(n,)`` their CFs, for ``cf_levels`` above 0.
+    cf_levels : sequence of float
+        CF levels counted at.
 
     Returns
     -------
-    float
-        The probability, at least ``1 / (n_pings * copies)``: one clutter
-        detection is assumed even where none was seen (a line in empty
-        water is not infinitely sure).
+    numpy.ndarray
+        The probability per level, each at least ``1 / (n_pings * copies)``:
+        one clutter detection is assumed even where none was seen (a line in
+        empty water is not infinitely sure).
     """
     from scipy.stats import trim_mean
 
     n_pings = max(int(n_pings), 1)
     keep = np.abs(b - line_b) <= burial_gate_m if math.isfinite(line_b) else np.ones(dy.size, dtype=bool)
     dy, pings = dy[keep], ping_index[keep]
-    counts = np.array([np.unique(pings[np.abs(dy - off) <= across_gate_m]).size for off in offsets_m], np.float64)
-    if counts.size == 0:
-        return 1.0 / n_pings
-    return max(float(trim_mean(counts, 0.2)) / n_pings, 1.0 / (n_pings * counts.size))
+    strength = np.ones(dy.size) if cf is None else np.asarray(cf, dtype=np.float64)[keep]
+    counts = np.zeros((len(offsets_m), len(cf_levels)))
+    for i, off in enumerate(offsets_m):
+        inside = np.abs(dy - off) <= across_gate_m
+        best = np.zeros(n_pings)  # the strongest detection of each ping inside the copy
+        np.maximum.at(best, pings[inside], strength[inside])
+        seen = np.zeros(n_pings, dtype=bool)
+        seen[pings[inside]] = True
+        counts[i] = [np.count_nonzero(seen & (best >= level)) for level in cf_levels]
+    if counts.shape[0] == 0:
+        return np.full(len(cf_levels), 1.0 / n_pings)
+    return np.maximum(trim_mean(counts, 0.2, axis=0) / n_pings, 1.0 / (n_pings * counts.shape[0]))

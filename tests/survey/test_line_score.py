@@ -10,11 +10,13 @@ import math
 import numpy as np
 import pytest
 from scipy.special import erf
+from scipy.stats import binom
 
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_products import LineDetections, survey_lines
-from clbeam.survey.line_score import clutter_hit_rate, copy_offsets
+from clbeam.survey.line_score import SearchSize, clutter_hit_rate, copy_offsets, line_score
+from clbeam.survey.line_score import tests_per_km as n_tests_per_km
 
 N_PINGS = 100
 GATE_Y, GATE_B = 1.5, 0.5
@@ -34,7 +36,7 @@ def poisson_clutter(per_m: float, y_range: tuple, burials, rng):
 
 def measured_rate(ping, y, b, path_y, line_b):
     offsets = copy_offsets(path_y, GATE_Y, (-700.0, 700.0))
-    return clutter_hit_rate(y - path_y[ping], b, ping, N_PINGS, line_b, GATE_Y, GATE_B, offsets), offsets.size
+    return clutter_hit_rate(y - path_y[ping], b, ping, N_PINGS, line_b, GATE_Y, GATE_B, offsets)[0], offsets.size
 
 
 @pytest.mark.parametrize("gathered", [False, True])
@@ -70,6 +72,30 @@ def test_a_copy_over_another_line_or_beyond_the_swath_does_not_count_as_clutter(
     assert sorted(np.abs(copy_offsets(np.zeros(3), GATE_Y, (-5.0, 5.0)))) == [6.0, 6.0, 9.0, 9.0]
     # no clutter at all: one detection is assumed over the copies
     assert measured_rate(ping[:0], y[:0], b[:0], path_y, 1.0)[0] == pytest.approx(1 / (copies * N_PINGS))
+
+
+def test_hit_rate_at_each_cf_level_is_the_closed_form_and_strong_echoes_score_by_the_best_level():
+    """Clutter with CF uniform over 0.4-0.9: at level c a share (0.9 - c) / 0.5 of it counts (0.4 and below:
+    all).  A line hit in 95 of 100 pings, 80 of them at CF >= 0.8, through clutter that hits a gate in 83 %
+    of the pings: counted at every CF it is chance, at 0.8 it is not; the score is the best level's less
+    log10 of the levels."""
+    rng = np.random.default_rng(5)
+    per_m = 0.6
+    ping, y, b = poisson_clutter(per_m, (200.0, 500.0), lambda n: rng.uniform(0.5, 1.5, n), rng)
+    cf = rng.uniform(0.4, 0.9, ping.size)
+    path_y = np.full(N_PINGS, 350.0)
+    offsets = copy_offsets(path_y, GATE_Y, (-700.0, 700.0))
+    levels = (0.0, 0.5, 0.6, 0.7, 0.8)
+    p = clutter_hit_rate(y - path_y[ping], b, ping, N_PINGS, 1.0, GATE_Y, GATE_B, offsets, cf=cf, cf_levels=levels)
+    expected = -np.expm1(-per_m * 2 * GATE_Y * np.minimum((0.9 - np.asarray(levels)) / 0.5, 1.0))
+    assert p == pytest.approx(expected, abs=4 * math.sqrt(0.25 / (offsets.size * N_PINGS)))
+    size = SearchSize(spacing_m=8.0, swath_m=1000.0, burial_span_m=20.0)
+    hits = [95, 95, 93, 88, 80]
+    score = line_score(hits, N_PINGS, p, GATE_Y, GATE_B, size, 60.0)
+    n = n_tests_per_km(size, N_PINGS, GATE_Y, GATE_B, 60.0)
+    by_level = [-(math.log10(n) + binom.logsf(h - 1, N_PINGS, q) / math.log(10)) for h, q in zip(hits, p)]
+    assert score == pytest.approx(max(by_level) - math.log10(len(levels)))
+    assert by_level[0] < 4 < score and int(np.argmax(by_level)) == 4
 
 
 def far_angle_survey(rng, n_pings: int = 120, spacing_m: float = 8.2):
