@@ -1,8 +1,12 @@
 /* Beam-sampled imaging: the sums on the beam grid interpolated to the output
  * grid along angle (clbeam/imaging/engine/beams.py has the derivation).
  *
- * One work-item per output cell (range fastest, so neighbouring work-items
- * read neighbouring beam samples).  For output angle a the host gives the
+ * One work-item per output cell inside the output window [win_first,
+ * win_end) of its angle (range fastest, so neighbouring work-items read
+ * neighbouring beam samples); the cells are written packed, angle after
+ * angle from out_first[a], the window's first cell (the whole range axis
+ * for every angle is the plain grid layout; the host spreads a seabed
+ * band's cells onto its zeroed grid).  For output angle a the host gives the
  * first beam of its support, tap0[a], and TAPS weights (a Kaiser-windowed
  * sinc summing to 1); the coherent sum S (complex) and the incoherent sum Q
  * are interpolated, and intensity |S|^2 and CF = |S|^2 / (M Q) (W Q with
@@ -10,7 +14,6 @@
  * must be the same on every tap (beam_ok, computed by the host per support
  * start): otherwise different channels made the taps' sums, the cell is not
  * interpolated but flagged (flag = 1) for the host to image directly.
- * Cells outside the output window [win_first, win_end) are 0 and unflagged.
  *
  * Compile-time macros (-D): REAL_T, REAL_IS_DOUBLE, TAPS, N_RANGE, APODIZE,
  * WANT_INTENSITY, WANT_CF, WANT_SUMS, MIN_CHANNELS (CF is 0 where M is below it).
@@ -28,25 +31,26 @@ __kernel void beam_to_grid(
     __global const real_t *restrict tap_w,    /* [n_angle][TAPS] */
     __global const int *restrict win_first,   /* [n_angle] */
     __global const int *restrict win_end,     /* [n_angle] */
-    __global real_t *restrict out_intensity,  /* [n_angle][N_RANGE] */
+    __global const int *restrict out_first,   /* [n_angle] packed index of each window's first cell */
+    __global real_t *restrict out_intensity,  /* [n_cells] packed */
     __global real_t *restrict out_cf,
-    __global real_t *restrict out_s,          /* [2][n_angle][N_RANGE] */
+    __global real_t *restrict out_s,          /* [2][n_cells] */
     __global real_t *restrict out_q,
     __global int *restrict out_m,
     __global real_t *restrict out_w,
-    __global uchar *restrict out_flag,        /* [n_angle][N_RANGE] */
-    const int n_angle)
+    __global uchar *restrict out_flag,        /* [n_cells] */
+    const int n_angle,
+    const int n_cells)
 {
-    const int ir = get_global_id(0);
     const int ia = get_global_id(1);
-    if (ir >= N_RANGE || ia >= n_angle)
+    if (ia >= n_angle)
         return;
-    const size_t cell = (size_t)ia * N_RANGE + ir;
+    const int ir = win_first[ia] + (int)get_global_id(0);
+    if (ir >= win_end[ia] || ir >= N_RANGE)
+        return;
+    const size_t cell = (size_t)out_first[ia] + (size_t)(ir - win_first[ia]);
     const size_t plane = (size_t)n_beam * N_RANGE;
-    const int inside = ir >= win_first[ia] && ir < win_end[ia];
-    /* outside the window the taps are read from beam 0 and discarded: every read stays in the buffers */
-    const int b0 = inside ? tap0[ia] : 0;
-    const size_t first = (size_t)b0 * N_RANGE + ir;
+    const size_t first = (size_t)tap0[ia] * N_RANGE + ir;
     const int m0 = beam_m[first];
 #if APODIZE
     const real_t w0 = beam_w[first];
@@ -60,7 +64,7 @@ __kernel void beam_to_grid(
         si += wk * beam_s[plane + b];
         q += wk * beam_q[b];
     }
-    const int keep = inside && same;
+    const int keep = same;
     sr = keep ? sr : (real_t)0;
     si = keep ? si : (real_t)0;
     q = keep ? q : (real_t)0;
@@ -70,7 +74,7 @@ __kernel void beam_to_grid(
 #else
     const real_t denom = (real_t)(keep ? m0 : 0) * q;
 #endif
-    out_flag[cell] = (uchar)(inside && !same);
+    out_flag[cell] = (uchar)!same;
 #if WANT_INTENSITY
     out_intensity[cell] = inten;
 #endif
@@ -79,7 +83,7 @@ __kernel void beam_to_grid(
 #endif
 #if WANT_SUMS
     out_s[cell] = sr;
-    out_s[(size_t)n_angle * N_RANGE + cell] = si;
+    out_s[(size_t)n_cells + cell] = si;
     out_q[cell] = q;
     out_m[cell] = keep ? m0 : 0;
 #if APODIZE

@@ -344,7 +344,8 @@ class Imager:
             sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
             element_offsets_m=elements - centre, source_offset_m=source - centre,
             centre_frequency_hz=fc or 0.0, weights=weights, band_hz=band,
-            min_channels=min_channels_of(self.options.min_channels, data.shape[0]))
+            min_channels=min_channels_of(self.options.min_channels, data.shape[0]),
+            data_token=object())  # one token a ping: the engine uploads its channels once for every stage
         return self._with_tables(ping, inp, float(centre[2])), setting
 
     def setting_of(self, ping: Ping) -> Setting:

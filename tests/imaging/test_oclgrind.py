@@ -36,7 +36,8 @@ def test_kernels_are_clean_under_oclgrind():
     variants = [line for line in r.stdout.splitlines() if line.startswith("variant")]
     assert len(variants) >= 80  # 6 modes x (2 precisions + 2 more layouts), each plain, apodized, ray-traced; beams
     assert sum("apodized" in line for line in variants) >= 24 and sum("tables" in line for line in variants) >= 24
-    assert sum(line.startswith("variant beams") for line in variants) >= 8
+    assert sum(line.startswith("variant beams") for line in variants) >= 12
+    assert sum(line.startswith("variant beams-window") for line in variants) >= 4  # packed cells of a band
     assert sum(line.startswith("variant points-tables") for line in variants) >= 8  # sub-cell refinement
     for line in variants:
         rel = float(re.search(r"rel=(\S+)", line).group(1))

@@ -38,24 +38,33 @@ def interpolate_beams_cl(engine, plan: BeamPlan, beam, outs: frozenset, out_wind
             engine.upload("beam_w", np.asarray(beam.w if weighted else np.zeros(1), dtype=real)),
             engine.upload("beam_ok", consistent_supports(beam, plan.taps, weighted).view(np.uint8)),
             np.int32(plan.grid.shape[0])]
+    first = np.clip(np.asarray(out_windows[:, 0], dtype=np.int64), 0, n_r)
+    lengths = np.clip(np.asarray(out_windows[:, 1], dtype=np.int64), first, n_r) - first
     out = _TileOutputs(engine, outs, weighted, n_a, n_r)
     for a0 in range(0, n_a, out.rows):
         na = min(out.rows, n_a - a0)
         rows = slice(a0, a0 + na)
+        n_cells = int(lengths[rows].sum())
+        if n_cells == 0:  # nothing of these angles in the window: their cells stay 0
+            continue
+        packed_first = np.r_[0, np.cumsum(lengths[rows])[:-1]]
         args = [engine.upload("tap0", plan.first_tap[rows].astype(np.int32)),
                 engine.upload("tap_w", np.ascontiguousarray(plan.weights[rows], dtype=real)),
-                engine.upload("bwin_first", np.ascontiguousarray(out_windows[rows, 0], dtype=np.int32)),
-                engine.upload("bwin_end", np.ascontiguousarray(out_windows[rows, 1], dtype=np.int32))]
+                engine.upload("bwin_first", first[rows].astype(np.int32)),
+                engine.upload("bwin_end", (first[rows] + lengths[rows]).astype(np.int32)),
+                engine.upload("bout_first", packed_first.astype(np.int32))]
         local = min(LOCAL_RANGES, n_r)
-        kernel(engine.queue, (-(-n_r // local) * local, na), (local, 1), *head, *args, *out.buffers(),
-               np.int32(na))
-        out.read(a0, na)
+        width = int(lengths[rows].max())
+        kernel(engine.queue, (-(-width // local) * local, na), (local, 1), *head, *args, *out.buffers(),
+               np.int32(na), np.int32(n_cells))
+        out.read(a0, first[rows], lengths[rows])
     engine.queue.finish()
     return out.arrays(), out.flag.astype(bool)
 
 
 class _TileOutputs:
-    """Host arrays of the output grid and the device buffers of one tile of angle rows."""
+    """Host arrays of the output grid (0 outside the windows) and the device buffers of one tile of angle rows,
+    whose cells come back packed window after window."""
 
     NAMES = ("intensity", "cf", "s", "q", "m", "w", "flag")
 
@@ -70,7 +79,7 @@ class _TileOutputs:
         self.full = {}
         for name in wanted:
             dtype = np.uint8 if name == "flag" else np.int32 if name == "m" else real
-            self.full[name] = np.empty(((2,) if name == "s" else ()) + (n_a, n_r), dtype=dtype)
+            self.full[name] = np.zeros(((2,) if name == "s" else ()) + (n_a, n_r), dtype=dtype)
         itemsize = np.dtype(real).itemsize
         size = {"m": 4, "flag": 1}
         self.bufs = {name: engine.buffer("bout_" + name, (2 if name == "s" else 1) * self.rows * n_r
@@ -82,16 +91,22 @@ class _TileOutputs:
         """The output buffers in the kernel's argument order."""
         return [self.bufs[name] for name in self.NAMES]
 
-    def read(self, a0: int, na: int) -> None:
-        """Copy a tile's results into rows ``a0 .. a0 + na``."""
+    def read(self, a0: int, first: np.ndarray, lengths: np.ndarray) -> None:
+        """Copy a tile's packed cells (the windows ``[first, first + lengths)`` of rows ``a0 ..``) into place."""
         cl, queue = pyopencl(), self.engine.queue
+        na, n_cells = lengths.size, int(lengths.sum())
+        whole = n_cells == na * self.n_r  # every cell: the packed layout is the grid's
+        # where the packed cells go in the tile's flattened rows
+        spread = None if whole else (np.repeat(np.arange(na) * self.n_r + first - np.r_[0, np.cumsum(lengths)[:-1]],
+                                               lengths) + np.arange(n_cells))
         for name, arr in self.full.items():
-            if name == "s":
-                host = np.empty((2, na, self.n_r), dtype=arr.dtype)
-                cl.enqueue_copy(queue, host, self.bufs[name], is_blocking=True)
-                arr[:, a0:a0 + na] = host
-            else:
-                cl.enqueue_copy(queue, arr[a0:a0 + na], self.bufs[name], is_blocking=True)
+            planes = [arr[0, a0:a0 + na], arr[1, a0:a0 + na]] if name == "s" else [arr[a0:a0 + na]]
+            for k, plane in enumerate(planes):  # contiguous rows: copied straight in when the tile is whole
+                dest = plane if whole else np.empty(n_cells, dtype=arr.dtype)
+                cl.enqueue_copy(queue, dest, self.bufs[name], src_offset=k * n_cells * arr.itemsize,
+                                is_blocking=True)
+                if not whole:
+                    plane.reshape(-1)[spread] = dest
 
     def arrays(self) -> dict:
         """The outputs by name, ``s`` complex."""
