@@ -93,7 +93,8 @@ for precision, layout in runs:
     want = ref.beamform(banded, beam_grid, interp="cubic", outputs=("intensity", "cf", "sums"), beams=sampling,
                         range_window_m=window)
     rel = max(np.linalg.norm(got.intensity - want.intensity) / np.linalg.norm(want.intensity),
-              np.max(np.abs(got.cf - want.cf)))
+              np.max(np.abs(got.cf - want.cf)), np.linalg.norm(got.s - want.s) / np.linalg.norm(want.s),
+              np.linalg.norm(got.q - want.q) / np.linalg.norm(want.q))
     print(f"variant beams-window {precision} {layout} cubic rel={rel:.2e} m_equal={np.array_equal(got.m, want.m)} "
           f"m_range={want.m.min()}-{want.m.max()}")
     # the sums at arbitrary points (sub-cell peak refinement): one table entry per point, straight

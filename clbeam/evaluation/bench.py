@@ -17,6 +17,7 @@ precision and recall (a peak matches when an exact one lies within one cell).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import logging
 import re
 import subprocess
@@ -223,7 +224,9 @@ class _Inputs:
         if upsample not in self._inputs:
             # straight rays: one input serves the timing grid, its subsample and the accuracy window
             opts = ImagingOptions(upsample=upsample, use_svp=False)
-            self._inputs[upsample] = Imager(self.grid, opts, engine=self.reference).beamform_input(self.ping)
+            inp = Imager(self.grid, opts, engine=self.reference).beamform_input(self.ping)
+            # no data token: every timed call scales and uploads the channels, as one ping's imaging does
+            self._inputs[upsample] = dataclasses.replace(inp, data_token=None)
         return self._inputs[upsample]
 
 

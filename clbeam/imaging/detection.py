@@ -116,7 +116,7 @@ def local_contrast(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.n
         i = int(np.argmin(np.abs(a - row["angle_deg"])))
         j = int(np.argmin(np.abs(r - row["range_m"])))
         # the window less the cross of the echo's range band and its angle band (inclusion-exclusion)
-        parts = [_box(x, a, r, i, j, h) for h in ((wr, wa), (gr, wa), (wr, ga), (gr, ga))]
+        parts = [_box(x, a, r, i, j, h, with_max=h == (gr, ga)) for h in ((wr, wa), (gr, wa), (wr, ga), (gr, ga))]
         total = parts[0][0] - parts[1][0] - parts[2][0] + parts[3][0]
         count = parts[0][1] - parts[1][1] - parts[2][1] + parts[3][1]
         if parts[3][1] and parts[3][2] > 0:
@@ -126,17 +126,22 @@ def local_contrast(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.n
     return echo, clutter
 
 
-def _box(x: np.ndarray, a: np.ndarray, r: np.ndarray, i: int, j: int, half: tuple) -> tuple[float, int, float]:
-    """Sum, count and maximum of the finite cells within ``half`` (m of range, degree of angle) of cell
-    ``(i, j)``, bounds from the coordinates (exact on uneven axes; a millionth of a step of slack)."""
+def _box(x: np.ndarray, a: np.ndarray, r: np.ndarray, i: int, j: int, half: tuple, *,
+         with_max: bool = False) -> tuple[float, int, float]:
+    """Sum, count and (``with_max``) maximum of the finite cells within ``half`` (m of range, degree of angle)
+    of cell ``(i, j)``, bounds from the coordinates (exact on uneven axes; a millionth of a step of slack)."""
     bounds = []
     for axis, k, h in ((a, i, half[1]), (r, j, half[0])):
         slack = 1e-6 * (float(axis[-1] - axis[0]) / max(axis.size - 1, 1))
         bounds.append((np.searchsorted(axis, axis[k] - h - slack, side="left"),
                        np.searchsorted(axis, axis[k] + h + slack, side="right")))
     box = x[bounds[0][0]:bounds[0][1], bounds[1][0]:bounds[1][1]]
+    total = float(box.sum(dtype=np.float64))
+    if math.isfinite(total):  # no NaN or infinity inside (the usual case): no mask to build
+        return total, box.size, (float(box.max()) if with_max and box.size else math.nan)
     ok = np.isfinite(box)
-    return float(box[ok].sum(dtype=np.float64)), int(ok.sum()), float(box[ok].max()) if ok.any() else math.nan
+    return (float(box[ok].sum(dtype=np.float64)), int(ok.sum()),
+            float(box[ok].max()) if with_max and ok.any() else math.nan)
 
 
 def noise_floor(intensity: np.ndarray, cf: np.ndarray | None = None) -> float:

@@ -21,7 +21,7 @@ from clbeam.survey.burial import arc_constrained, specular_fit
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
-from clbeam.survey.lines import Track, TrackFrame, across_gate, find_tracks, line_burial, smooth_path
+from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, smooth_path
 from clbeam.survey.specular import fading_fit, fading_floor_db, specular_crossing
 
 log = logging.getLogger(__name__)
@@ -258,13 +258,14 @@ def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, opti
     ext = frame.pings[tr.first:tr.last + 1]
     gate_y, gate_b = effective_gates(frame, tr, path_y, options)
     at = np.searchsorted(ext, frame.ping[m])
-    on = np.abs(frame.y[m] - path_y[at]) <= gate_y
+    # hits and clutter pass the same tests: within the gate across, and the track's own burial gate
+    on = (np.abs(frame.y[m] - path_y[at]) <= gate_y) & burial_ok(frame.b[m], frame.b_sigma[m], burial, options)
     hits = [np.unique(frame.ping[m][on & (frame.cf[m] >= level)]).size for level in CF_LEVELS]
     others = np.setdiff1d(np.arange(int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])), m)
+    others = others[burial_ok(frame.b[others], frame.b_sigma[others], burial, options)]
     at_others = np.searchsorted(ext, frame.ping[others])
-    offsets = copy_offsets(path_y, gate_y, size.y_range_m)
-    p_hit = clutter_hit_rate(frame.y[others] - path_y[at_others], frame.b[others], at_others, ext.size, burial,
-                             gate_y, gate_b, offsets, cf=frame.cf[others], cf_levels=CF_LEVELS)
+    p_hit = clutter_hit_rate(frame.y[others] - path_y[at_others], at_others, path_y, copy_offsets(gate_y), gate_y,
+                             size.y_range_m, cf=frame.cf[others], cf_levels=CF_LEVELS)
     return line_score(hits, ext.size, p_hit, gate_y, gate_b, size, options.max_angle_deg)
 
 

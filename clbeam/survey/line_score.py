@@ -114,87 +114,108 @@ def line_score(hits, trials: int, p_hit, across_gate_m: float, burial_gate_m: fl
         The score (higher: less likely by chance).
     """
     hits, p_hit = np.atleast_1d(hits), np.atleast_1d(p_hit)
+    if hits.size != p_hit.size:
+        raise ValueError(f"{hits.size} hit counts for {p_hit.size} clutter rates")
     log_p = min(log10_binomial_tail(int(h), trials, float(p)) for h, p in zip(hits, p_hit))
     n = tests_per_km(size, trials, across_gate_m, burial_gate_m, max_angle_deg) * hits.size
     return -(math.log10(n) + log_p)
 
 
-def copy_offsets(path_y: np.ndarray, across_gate_m: float, y_span: tuple[float, float], *,
-                 half_width_m: float = 50.0, min_copies: int = 4) -> np.ndarray:
-    """Offsets (m) of the copies of a line's path on which its clutter is counted (:func:`clutter_hit_rate`).
-
-    Steps of two gates from two gates out to ``half_width_m`` (at least
-    eight gates) on both sides, kept where the whole copy lies within
-    ``y_span`` (the detections' extent across, m): a copy beyond the swath
-    has no clutter to count.  Where fewer than ``min_copies`` fit, the
-    nearest ``min_copies`` are used as they are.
-    """
+def copy_offsets(across_gate_m: float, *, half_width_m: float = 50.0) -> np.ndarray:
+    """Offsets (m) of the copies of a line's path on which its clutter is counted (:func:`clutter_hit_rate`):
+    steps of one gate width (``2 across_gate_m``) from two widths out to ``half_width_m`` (at least four
+    widths), on both sides."""
     step = 2 * across_gate_m
     n = max(int(max(half_width_m, 8 * across_gate_m) // step), 2)
-    offsets = step * np.r_[-np.arange(2, n + 1), np.arange(2, n + 1)].astype(np.float64)
-    inside = (path_y.min() + offsets >= y_span[0]) & (path_y.max() + offsets <= y_span[1])
-    if inside.sum() >= min_copies:
-        return offsets[inside]
-    return offsets[np.argsort(np.abs(offsets), kind="stable")[:min_copies]]
+    return step * np.r_[-np.arange(2, n + 1), np.arange(2, n + 1)].astype(np.float64)
 
 
-def clutter_hit_rate(dy: np.ndarray, b: np.ndarray, ping_index: np.ndarray, n_pings: int, line_b: float,
-                     across_gate_m: float, burial_gate_m: float, offsets_m: np.ndarray, *,
-                     cf: np.ndarray | None = None, cf_levels=(0.0,)) -> np.ndarray:
+def clutter_hit_rate(dy: np.ndarray, ping_index: np.ndarray, path_y: np.ndarray, offsets_m: np.ndarray,
+                     across_gate_m: float, y_range_m: tuple, *, cf: np.ndarray | None = None,
+                     cf_levels=(0.0,), outlier_p: float = 1e-3) -> np.ndarray:
     """Probability that clutter alone puts a detection inside a line's gates in one ping, measured in the survey.
 
-    The line's path is copied across at ``offsets_m`` (:func:`copy_offsets`)
-    with its own gates and burial; each copy counts its pings with a detection
-    inside (of CF at least each level), and the rate is the copies' mean
-    count over ``n_pings``, a fifth of the copies off each end (a copy over
-    another line or the nadir's echo is not clutter).  Measured this way,
-    clutter that gathers at the line's burial (peaks moved along their arcs
-    to the burial prior, far from nadir) or thickens with range counts as it
-    is, where a density averaged over burial and across would understate it.
+    The line's path is copied across at ``offsets_m`` (:func:`copy_offsets`);
+    a copy counts, over the pings where it lies within ``y_range_m`` (the
+    detections' extent: beyond it there is no clutter to count), those with
+    a detection within ``across_gate_m`` of it (of CF at least each level).
+    On each side of the line the rate is the copies' pooled count over their
+    pings, less the copies that hold more than clutter (another pipe, the
+    nadir echo): those whose count the pooled rate makes less likely than
+    ``outlier_p`` (binomial upper tail), dropped until none is; the line
+    takes the larger side's (at the edge of a clutter band the clutter at
+    the line is that of the side within it).  Measured this way, clutter that
+    gathers at the line's burial (peaks moved along their arcs to the burial
+    prior, far from nadir) or thickens with range counts as it is, where a
+    density averaged over burial and across would understate it.
 
     Parameters
     ----------
     dy : numpy.ndarray
-        ``(n,)`` offsets (m) across of the detections off the line from
-        the line's path at their pings.
-    b : numpy.ndarray
-        ``(n,)`` their burials (m).
+        ``(n,)`` offsets (m) across of the clutter detections (off the
+        line, within its burial gate as its own detections are) from the
+        line's path at their pings.
     ping_index : numpy.ndarray
-        ``(n,)`` their pings, as indices ``0 .. n_pings - 1`` along the line.
-    n_pings : int
-        Imaged pings along the line.
-    line_b : float
-        The line's burial (m; NaN: burial not used).
-    across_gate_m, burial_gate_m : float
-        Half-widths of the line's gates (m).
+        ``(n,)`` their pings, as indices into ``path_y``.
+    path_y : numpy.ndarray
+        ``(K,)`` the line's offset (m) at each imaged ping of its extent.
     offsets_m : numpy.ndarray
         The copies' offsets (m).
+    across_gate_m : float
+        Half-width of the line's gate across (m).
+    y_range_m : (float, float)
+        Least and greatest offset of the survey's detections (m).
     cf : numpy.ndarray, optional
         ``(n,)`` their CFs, for ``cf_levels`` above 0.
     cf_levels : sequence of float
         CF levels counted at.
+    outlier_p : float
+        Upper-tail probability below which a copy is not clutter.
 
     Returns
     -------
     numpy.ndarray
-        The probability per level, each at least ``1 / (n_pings * copies)``:
-        one clutter detection is assumed even where none was seen (a line in
-        empty water is not infinitely sure).
+        The probability per level, each at least one over a side's copies'
+        pings: one clutter detection is assumed even where none was seen (a
+        line in empty water is not infinitely sure).
     """
-    from scipy.stats import trim_mean
+    strength = np.ones(dy.size) if cf is None else np.asarray(cf, dtype=np.float64)
+    counts, trials = _copy_counts(dy, ping_index, path_y, offsets_m, across_gate_m, y_range_m, strength, cf_levels)
+    sides = [np.asarray(offsets_m) < 0, np.asarray(offsets_m) > 0]
+    rates = [[_pooled_rate(counts[side, k], trials[side], outlier_p) for side in sides]
+             for k in range(len(cf_levels))]
+    if not np.isfinite(rates).any():  # no copy inside the detections' extent
+        return np.full(len(cf_levels), 1.0 / max(path_y.size, 1))
+    return np.nanmax(np.asarray(rates, dtype=np.float64), axis=1)
 
-    n_pings = max(int(n_pings), 1)
-    keep = np.abs(b - line_b) <= burial_gate_m if math.isfinite(line_b) else np.ones(dy.size, dtype=bool)
-    dy, pings = dy[keep], ping_index[keep]
-    strength = np.ones(dy.size) if cf is None else np.asarray(cf, dtype=np.float64)[keep]
+
+def _copy_counts(dy, ping_index, path_y, offsets_m, across_gate_m, y_range_m, strength, cf_levels) -> tuple:
+    """Per copy, its pings with a detection inside at each CF level ``(copies, levels)``, and its pings within
+    the detections' extent ``(copies,)`` (:func:`clutter_hit_rate`)."""
     counts = np.zeros((len(offsets_m), len(cf_levels)))
+    trials = np.zeros(len(offsets_m))
     for i, off in enumerate(offsets_m):
-        inside = np.abs(dy - off) <= across_gate_m
-        best = np.zeros(n_pings)  # the strongest detection of each ping inside the copy
-        np.maximum.at(best, pings[inside], strength[inside])
-        seen = np.zeros(n_pings, dtype=bool)
-        seen[pings[inside]] = True
-        counts[i] = [np.count_nonzero(seen & (best >= level)) for level in cf_levels]
-    if counts.shape[0] == 0:
-        return np.full(len(cf_levels), 1.0 / n_pings)
-    return np.maximum(trim_mean(counts, 0.2, axis=0) / n_pings, 1.0 / (n_pings * counts.shape[0]))
+        valid = (path_y + off >= y_range_m[0]) & (path_y + off <= y_range_m[1])
+        inside = (np.abs(dy - off) <= across_gate_m) & valid[ping_index]
+        best = np.full(path_y.size, -np.inf)  # the strongest detection of each ping inside the copy
+        np.maximum.at(best, ping_index[inside], strength[inside])
+        counts[i] = [np.count_nonzero(best >= level) for level in cf_levels]
+        trials[i] = np.count_nonzero(valid)
+    return counts, trials
+
+
+def _pooled_rate(counts: np.ndarray, trials: np.ndarray, outlier_p: float) -> float:
+    """Pooled hit rate of one side's copies with pings, the outlying ones (upper tail below ``outlier_p``)
+    left out; at least one over their pings (NaN: no copy with pings)."""
+    from scipy.stats import binom
+
+    use = trials > 0
+    if not use.any():
+        return math.nan
+    for _ in range(len(counts)):
+        rate = counts[use].sum() / trials[use].sum()
+        keep = use & (binom.sf(counts - 1, trials, rate) >= outlier_p)
+        if keep.sum() == use.sum() or not keep.any():
+            break
+        use = keep
+    return max(float(counts[use].sum() / trials[use].sum()), 1.0 / float(trials[use].sum()))

@@ -235,7 +235,7 @@ def _prune(frame: TrackFrame, members: np.ndarray, options: LineOptions) -> np.n
         if members.size < 3:
             return members
         b_hat = burial_estimate(frame.b[members], frame.b_sigma[members])
-        ok = _burial_ok(frame.b[members], frame.b_sigma[members], b_hat, options)
+        ok = burial_ok(frame.b[members], frame.b_sigma[members], b_hat, options)
         s_m = frame.s[members]
         path = local_linear(s_m, frame.y[members], s_m, options.fit_length_m / 2, leave_out=True)
         slope = np.gradient(path, s_m) if np.ptp(s_m) > 0 else 0.0
@@ -278,7 +278,7 @@ def _extend(frame: TrackFrame, hits: dict, used: np.ndarray, options: LineOption
         cand = np.arange(sl.start, sl.stop)
         cand = cand[~used[cand]]
         dy = np.abs(frame.y[cand] - y_hat)
-        ok = (dy <= across_gate(frame, cand, slope, options)) & _burial_ok(frame.b[cand], frame.b_sigma[cand], b_hat,
+        ok = (dy <= across_gate(frame, cand, slope, options)) & burial_ok(frame.b[cand], frame.b_sigma[cand], b_hat,
                                                                             options)
         if ok.any():
             # of several (a steep line's echo smears across the gate) the one nearest their CF-weighted centre
@@ -308,7 +308,10 @@ def across_gate(frame: TrackFrame, idx: np.ndarray, slope, options: LineOptions)
     return np.maximum(np.maximum(base, 2 * frame.y_sigma[idx]), smear)
 
 
-def _burial_ok(b: np.ndarray, sigma: np.ndarray, b_hat: float, options: LineOptions) -> np.ndarray:
+def burial_ok(b: np.ndarray, sigma: np.ndarray, b_hat: float, options: LineOptions) -> np.ndarray:
+    """Whether detections of burials ``b`` (m, NaN: unknown, passes) and standard deviations ``sigma`` (m) lie
+    within a line's burial gate about ``b_hat`` (m; NaN: every one does): ``burial_gate_m``, at least twice
+    ``sigma``."""
     if not math.isfinite(b_hat):
         return np.ones(b.shape, dtype=bool)
     return ~(np.abs(b - b_hat) > np.maximum(options.burial_gate_m, 2 * sigma))

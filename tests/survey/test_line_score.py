@@ -34,9 +34,12 @@ def poisson_clutter(per_m: float, y_range: tuple, burials, rng):
     return ping, y, burials(ping.size)
 
 
-def measured_rate(ping, y, b, path_y, line_b):
-    offsets = copy_offsets(path_y, GATE_Y, (-700.0, 700.0))
-    return clutter_hit_rate(y - path_y[ping], b, ping, N_PINGS, line_b, GATE_Y, GATE_B, offsets)[0], offsets.size
+def measured_rate(ping, y, b, path_y, line_b, span=(-700.0, 700.0)):
+    """The clutter rate on the line's copies, the clutter within its burial gate; and the copies' number."""
+    near = np.abs(b - line_b) <= GATE_B
+    offsets = copy_offsets(GATE_Y)
+    p = clutter_hit_rate(y[near] - path_y[ping[near]], ping[near], path_y, offsets, GATE_Y, span)
+    return p[0], offsets.size
 
 
 @pytest.mark.parametrize("gathered", [False, True])
@@ -57,21 +60,39 @@ def test_hit_rate_of_poisson_clutter_is_the_closed_form(gathered):
     assert p == pytest.approx(expected, abs=4 * math.sqrt(expected * (1 - expected) / (copies * N_PINGS)))
 
 
+def test_sparse_clutter_rate_is_not_understated():
+    """Under one clutter detection per line on average (K p = 0.4): the mean over 40 surveys of the rate is
+    not below the closed form by more than 3 standard errors (a trimmed mean of the copies' counts gave half
+    of it) and, the larger side's taken, above it by less than half."""
+    rng = np.random.default_rng(8)
+    per_m = 0.0004 / (2 * GATE_Y)  # p = 0.0004 a gate a ping
+    expected = -math.expm1(-per_m * 2 * GATE_Y)
+    rates = []
+    for _ in range(40):
+        ping, y, b = poisson_clutter(per_m * 10, (200.0, 500.0), lambda n: rng.uniform(0.5, 1.5, n), rng)
+        rates.append(measured_rate(ping, y, b, np.full(N_PINGS, 350.0), 1.0)[0])
+    se = math.sqrt(expected * 10 / (30 * N_PINGS) / 40)
+    assert expected * 10 - 3 * se <= np.mean(rates) <= 1.5 * expected * 10
+
+
 def test_a_copy_over_another_line_or_beyond_the_swath_does_not_count_as_clutter():
     rng = np.random.default_rng(4)
     ping, y, b = poisson_clutter(0.05, (-700.0, 700.0), lambda n: rng.uniform(-2, 25, n), rng)
     path_y = np.full(N_PINGS, -400.0)
     clean, copies = measured_rate(ping, y, b, path_y, 1.0)
-    # another pipe 9 m away, on one of the copies, in every ping
+    # another pipe 9 m away, on one of the copies, in every ping: that copy is left out
     with_pipe = measured_rate(np.r_[ping, np.arange(N_PINGS)], np.r_[y, np.full(N_PINGS, -391.0)],
                               np.r_[b, np.full(N_PINGS, 1.0)], path_y, 1.0)[0]
-    assert with_pipe == pytest.approx(clean, abs=0.2 / copies)  # a plain mean moves by 1 / copies
-    # near the swath's edge only the copies inside it are counted; none inside: the nearest four
-    edge = copy_offsets(np.linspace(680.0, 695.0, N_PINGS), GATE_Y, (-700.0, 700.0))
-    assert edge.size == 15 and np.all(edge < 0) and 695 + edge.max() <= 700
-    assert sorted(np.abs(copy_offsets(np.zeros(3), GATE_Y, (-5.0, 5.0)))) == [6.0, 6.0, 9.0, 9.0]
-    # no clutter at all: one detection is assumed over the copies
-    assert measured_rate(ping[:0], y[:0], b[:0], path_y, 1.0)[0] == pytest.approx(1 / (copies * N_PINGS))
+    assert with_pipe == pytest.approx(clean, rel=0.05)  # a plain mean of one side moves by 1 / 15 (100 %)
+    # a line running off the swath's edge: its copies count only the pings where they lie inside it
+    dense, _ = poisson_clutter(0.3, (400.0, 700.0), lambda n: rng.uniform(0.5, 1.5, n), rng)[:2], None
+    ping_d, y_d = dense
+    edge_path = np.linspace(640.0, 760.0, N_PINGS)
+    p_edge = measured_rate(ping_d, y_d, np.ones(ping_d.size), edge_path, 1.0, span=(400.0, 700.0))[0]
+    expected = -math.expm1(-0.3 * 2 * GATE_Y)
+    assert p_edge == pytest.approx(expected, abs=0.05)
+    # no clutter at all: one detection is assumed over a side's copies' pings
+    assert measured_rate(ping[:0], y[:0], b[:0], path_y, 1.0)[0] == pytest.approx(2 / (copies * N_PINGS))
 
 
 def test_hit_rate_at_each_cf_level_is_the_closed_form_and_strong_echoes_score_by_the_best_level():
@@ -84,9 +105,9 @@ def test_hit_rate_at_each_cf_level_is_the_closed_form_and_strong_echoes_score_by
     ping, y, b = poisson_clutter(per_m, (200.0, 500.0), lambda n: rng.uniform(0.5, 1.5, n), rng)
     cf = rng.uniform(0.4, 0.9, ping.size)
     path_y = np.full(N_PINGS, 350.0)
-    offsets = copy_offsets(path_y, GATE_Y, (-700.0, 700.0))
+    offsets = copy_offsets(GATE_Y)
     levels = (0.0, 0.5, 0.6, 0.7, 0.8)
-    p = clutter_hit_rate(y - path_y[ping], b, ping, N_PINGS, 1.0, GATE_Y, GATE_B, offsets, cf=cf, cf_levels=levels)
+    p = clutter_hit_rate(y - path_y[ping], ping, path_y, offsets, GATE_Y, (-700.0, 700.0), cf=cf, cf_levels=levels)
     expected = -np.expm1(-per_m * 2 * GATE_Y * np.minimum((0.9 - np.asarray(levels)) / 0.5, 1.0))
     assert p == pytest.approx(expected, abs=4 * math.sqrt(0.25 / (offsets.size * N_PINGS)))
     size = SearchSize(spacing_m=8.0, swath_m=1000.0, burial_span_m=20.0)
@@ -101,29 +122,31 @@ def test_hit_rate_at_each_cf_level_is_the_closed_form_and_strong_echoes_score_by
 def far_angle_survey(rng, n_pings: int = 120, spacing_m: float = 8.2):
     """Seabed scatterers 250-450 m out on both sides, each seen for the pings whose 4.5 degree transmit beam
     holds it (about three), its peak slid along its arc by 0.3 deg / cos(theta) as the imager's are, and a pipe
-    1.5 m deep at -350 m in 95 % of the pings (its stronger echo slides 0.1 deg / cos(theta)); water 230 m
+    1.5 m deep at -350 m in 95 % of the pings (its stronger echo slides 0.1 deg / cos(theta); CF 0.6-0.8 where
+    the clutter's is 0.4-0.6, as Boulders' P and the clutter around it); water 230 m
     deep, the grid centre at the surface."""
     depth, beam = 230.0, math.radians(4.5)
     n_scat = rng.poisson(0.014 * 400 * (n_pings * spacing_m + 60))
     s_sc, y_sc = rng.uniform(-30, n_pings * spacing_m + 30, n_scat), rng.uniform(250, 450, n_scat)
     y_sc *= rng.choice([-1, 1], n_scat)
     z_sc = depth + rng.uniform(-0.3, 0.3, n_scat)
-    ping, y, z = [], [], []
+    ping, y, z, cf = [], [], [], []
     for k in range(n_pings):
         seen = (np.abs(s_sc - k * spacing_m) <= 0.5 * beam * np.hypot(y_sc, z_sc)) & (rng.random(n_scat) < 0.8)
         yk, zk = list(y_sc[seen]), list(z_sc[seen])
-        slide = np.full(len(yk), 0.3)
-        if rng.random() < 0.95:  # a strong echo: its peak slides less
+        slide, cf_k = np.full(len(yk), 0.3), list(rng.uniform(0.4, 0.6, len(yk)))
+        if rng.random() < 0.95:  # a strong echo: its peak slides less and is more coherent
             yk.append(-350.0)
             zk.append(depth + 1.5)
             slide = np.r_[slide, 0.1]
+            cf_k.append(rng.uniform(0.6, 0.8))
         r, theta = np.hypot(yk, zk), np.arctan2(yk, zk)
         theta = theta + np.radians(slide) / np.cos(theta) * rng.normal(size=theta.size)
         ping += [k] * r.size
         y += list(r * np.sin(theta))
         z += list(r * np.cos(theta))
-    ping = np.asarray(ping)
-    cf = rng.uniform(0.4, 0.7, ping.size)
+        cf += cf_k
+    ping, cf = np.asarray(ping), np.asarray(cf)
     return LineDetections(ping=ping, y=np.asarray(y), z=np.asarray(z), cf=cf), np.tile([depth, 0.0], (n_pings, 1))
 
 
@@ -139,4 +162,6 @@ def test_persistent_far_angle_seabed_scatterers_make_no_pipeline_line_and_the_pi
     nav.finish(imaged)
     lines = survey_lines(det, seabed, np.zeros((n, 2)), imaged, nav, LineOptions())
     pipes = [r for r in lines.rows if r["kind"] == "pipeline"]
-    assert len(pipes) == 1 and abs(pipes[0]["mean_y_m"] + 350) < 2 and pipes[0]["n_pings"] >= 0.9 * n
+    # the score is what is tested here (the positions against the truth are the evaluation's): the pipe's line
+    # is the only pipeline line, near the pipe, over most of its pings
+    assert len(pipes) == 1 and abs(pipes[0]["mean_y_m"] + 350) < 5 and pipes[0]["n_pings"] >= 0.85 * n

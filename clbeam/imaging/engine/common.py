@@ -112,6 +112,8 @@ class BeamformInput:
         ``data``, so an engine may reuse its scaled device copy of them
         between calls (the beams and directly imaged cells of one call, the
         points of the sub-cell refinement); ``None``: no reuse across calls.
+        :func:`dataclasses.replace` keeps it: give a new token (or ``None``)
+        with new ``data``.
     min_channels : int
         CF is 0 in cells summed from fewer channels than this (``M`` below
         it): with one channel CF is 1 by definition, with a few it is large

@@ -75,7 +75,8 @@ class _TileOutputs:
         if "sums" in outs:
             wanted |= {"s", "q", "m"} | ({"w"} if weighted else set())
         per_cell = sum(2 if n == "s" else 1 for n in wanted) * 8
-        self.rows = engine.tile_rows(n_a, n_r, per_cell)
+        # the kernel's packed cell indices are 32-bit
+        self.rows = max(1, min(engine.tile_rows(n_a, n_r, per_cell), (2**31 - 1) // max(n_r, 1)))
         self.full = {}
         for name in wanted:
             dtype = np.uint8 if name == "flag" else np.int32 if name == "m" else real
