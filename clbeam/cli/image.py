@@ -14,6 +14,7 @@ from clbeam.cli.options import (
     options_from_args,
     progress,
     remove_partial,
+    requested_outputs,
 )
 from clbeam.errors import OptionError, require
 from clbeam.io.paths import check_output_path
@@ -74,7 +75,7 @@ def run(args) -> int:
     _check(args, opts)
     with PingFile(args.pings) as pings:
         grid = grid_from_args(args, pings.max_record_range_m())
-        variables = image_variables(opts.outputs, apodized=opts.apodization != "rect")
+        variables = image_variables(requested_outputs(args), apodized=opts.apodization != "rect")
         stack = None
         if args.stack > 1:
             stack = PingStack(args.stack, opts.threshold, opts.min_channels)

@@ -92,7 +92,8 @@ def add_imaging_options(p: argparse.ArgumentParser, *, min_contrast_db: float | 
                    help="beam-sampled imaging: auto (chosen by the budget with --interp auto), off (every cell "
                         "directly), or an oversampling K of the aperture's band limit with TAPS interpolation taps")
     g.add_argument("--outputs", default="intensity,cf", metavar="LIST",
-                   help="comma-separated outputs: intensity, cf, sums (default intensity,cf)")
+                   help="comma-separated outputs: intensity, cf, sums, and cf_smooth (the CF smoothed along range "
+                        "that peaks are picked on, written on request) (default intensity,cf)")
     g.add_argument("--precision", default=None, choices=["float32", "float64"],
                    help="kernel arithmetic (default: float32 on OpenCL, float64 on the reference backend)")
     g.add_argument("--sound-speed", type=float, default=None, metavar="M/S", help="override the file's sound speed (m/s)")
@@ -153,8 +154,10 @@ def options_from_args(args, **overrides):
     (``overrides``: fields to set otherwise)."""
     from clbeam.imaging.imager import ImagingOptions
 
-    outputs = tuple(s.strip() for s in args.outputs.split(",") if s.strip())
-    fields = dict(interp=args.interp, upsample=args.upsample, outputs=outputs, threshold=args.threshold,
+    outputs = requested_outputs(args)
+    engine_outputs = tuple(o for o in outputs if o != "cf_smooth") + (("cf",) if "cf_smooth" in outputs else ())
+    fields = dict(interp=args.interp, upsample=args.upsample, outputs=tuple(dict.fromkeys(engine_outputs)),
+                  threshold=args.threshold,
                   max_error_db=args.max_error_db, beams=parse_beams(args.beams),
                   sound_speed_m_s=args.sound_speed, precision=args.precision,
                   seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
@@ -164,6 +167,12 @@ def options_from_args(args, **overrides):
                   min_channels=args.min_channels, min_snr_db=args.min_snr_db,
                   min_contrast_db=args.min_contrast_db)
     return ImagingOptions(**{**fields, **overrides})
+
+
+def requested_outputs(args) -> tuple:
+    """The ``--outputs`` names as given: the engine's (``intensity``, ``cf``, ``sums``) and the image file's
+    ``cf_smooth``, which :func:`options_from_args` leaves to the host (it needs ``cf``)."""
+    return tuple(s.strip() for s in args.outputs.split(",") if s.strip())
 
 
 def parse_beams(text: str):

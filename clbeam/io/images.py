@@ -1,8 +1,8 @@
 """Image files (NetCDF4 or Zarr, SPEC §8).
 
 Image files hold ``intensity(ping, angle, range)`` and ``cf(ping, angle,
-range)`` (plus ``cf_smooth`` and, on request, the raw sums ``s_r``, ``s_i``,
-``q``, ``m``, and ``w`` with apodization: :data:`clbeam.io.schema.IMAGE_VARIABLES`)
+range)`` (and, on request, the smoothed CF ``cf_smooth`` and the raw sums ``s_r``,
+``s_i``, ``q``, ``m``, and ``w`` with apodization: :data:`clbeam.io.schema.IMAGE_VARIABLES`)
 with coordinates ``range`` (m) and ``angle`` (degree).  They are written one
 ping at a time straight into the file's chunks (one chunk per ping and
 variable), so memory stays bounded whatever the count and nothing beyond

@@ -138,9 +138,11 @@ def image_variables(outputs, *, apodized: bool = False) -> list[str]:
     Parameters
     ----------
     outputs : iterable of str
-        Engine outputs: ``"intensity"``, ``"cf"`` (also gives ``cf_smooth``),
-        ``"sums"`` (``s_r``, ``s_i``, ``q``, ``m``, and ``w`` when
-        ``apodized``).
+        Engine outputs: ``"intensity"``, ``"cf"``, ``"sums"`` (``s_r``,
+        ``s_i``, ``q``, ``m``, and ``w`` when ``apodized``); and
+        ``"cf_smooth"``, written only when asked (it is ``cf`` smoothed
+        along range with the 7-point Hann window: a third of a file's bytes
+        that :func:`clbeam.imaging.postprocess.hann_smooth` gives back).
     apodized : bool
         The sums are weighted (a receive window other than ``rect``).
 
@@ -150,8 +152,6 @@ def image_variables(outputs, *, apodized: bool = False) -> list[str]:
         Names from :data:`IMAGE_VARIABLES`, in its order.
     """
     out = set(outputs)
-    if "cf" in out:
-        out.add("cf_smooth")
     if "sums" in out:
         out |= {"s_r", "s_i", "q", "m"} | ({"w"} if apodized else set())
     return [name for name in IMAGE_VARIABLES if name in out]

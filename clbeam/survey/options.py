@@ -131,7 +131,8 @@ class SurveyOptions:
         """Image variables written with ``images=True`` (:func:`clbeam.io.schema.image_variables`)."""
         if not self.images:
             return []
-        return image_variables(self.imaging.outputs, apodized=self.imaging.apodization != "rect")
+        outputs = set(self.imaging.outputs) | ({"cf_smooth"} if "cf" in self.imaging.outputs else set())
+        return image_variables(outputs, apodized=self.imaging.apodization != "rect")
 
 
 def _axis_summary(a: np.ndarray) -> dict:

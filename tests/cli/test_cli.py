@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 from scenes import dataset
+from scipy.ndimage import correlate1d
 
 from clbeam.cli.main import main
 from clbeam.io.peaks import read_peaks_csv
@@ -40,7 +41,20 @@ def test_image_writes_the_spec_variables_and_finds_each_scatterer(ping_file, tmp
         assert float(ds["cf"].isel(ping=i).sel(range=r, angle=a, method="nearest")) > 0.99
     rows = read_peaks_csv(peaks)
     assert {"ping", "range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db", "ship_latitude_deg"} <= set(rows[0])
+    assert "cf_smooth" not in ds  # derivable from cf: written on request
     ds.close()
+
+
+def test_smoothed_cf_is_written_on_request_as_the_hann_smoothed_cf(ping_file, tmp_path):
+    out = tmp_path / "img.nc"
+    assert main(["image", str(ping_file), "-o", str(out), "--max-range", "55", "--min-range", "30",
+                 "--angles", "-5", "25", "--outputs", "cf,cf_smooth", "-q"]) == 0
+    with xr.open_dataset(out) as ds:
+        assert "intensity" not in ds and {"cf", "cf_smooth"} <= set(ds)
+        # scipy's correlation with the paper's 7-point Hann window, zeros beyond the grid
+        want = correlate1d(ds["cf"].values.astype(np.float64), [0, 0.25, 0.75, 1, 0.75, 0.25, 0], axis=-1,
+                           mode="constant") / 3
+        np.testing.assert_allclose(ds["cf_smooth"].values, want, atol=1e-6)
 
 
 def test_peaks_from_an_image_file_equal_those_written_while_imaging(ping_file, tmp_path):

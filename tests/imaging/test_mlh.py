@@ -336,7 +336,7 @@ def test_clbeam_image_mlh_merges_every_coherence_peak_into_one_detection(tmp_pat
     assert cli.main(["image", str(ping_file), "-o", str(tmp_path / "a.nc"), *grid, "--peaks",
                      str(tmp_path / "a.csv"), "--no-refine", "-q"]) == 0
     assert cli.main(["image", str(ping_file), "-o", str(tmp_path / "b.nc"), *grid, "--mlh", "--peaks",
-                     str(tmp_path / "b.csv"), "-q"]) == 0
+                     str(tmp_path / "b.csv"), "--outputs", "intensity,cf,cf_smooth", "-q"]) == 0
     raw, merged = read_peaks_csv(tmp_path / "a.csv"), read_peaks_csv(tmp_path / "b.csv")
     with open_images(tmp_path / "b.nc") as ds:
         n_raw = len(coherence_peaks(ds["cf_smooth"].values[0], 0.25))

@@ -78,6 +78,7 @@ def test_pings_of_two_arrays_cannot_share_a_file():
 
 
 def test_image_variables_follow_the_outputs():
-    assert image_variables(("cf",)) == ["cf", "cf_smooth"]
-    assert image_variables(("intensity", "cf", "sums"), apodized=True) == list(IMAGE_VARIABLES)
+    assert image_variables(("cf",)) == ["cf"]  # the smoothed CF on request only
+    assert image_variables(("cf", "cf_smooth")) == ["cf", "cf_smooth"]
+    assert image_variables(("intensity", "cf", "cf_smooth", "sums"), apodized=True) == list(IMAGE_VARIABLES)
     assert "w" not in image_variables(("sums",))
