@@ -37,11 +37,11 @@ from clbeam.imaging.apodization import (
 )
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
 from clbeam.imaging.engine.beams import BeamSampling
-from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs, min_channels_of
+from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs, min_channels_of, user_windows
 from clbeam.imaging.engine.errormodel import Setting, choose_setting, predicted_settings
 from clbeam.imaging.geometry import check_positions, to_earth_frame
 from clbeam.imaging.peaks import PingContext, peak_rows
-from clbeam.imaging.postprocess import hann_smooth
+from clbeam.imaging.postprocess import hann_smooth, hann_smooth_in_windows
 from clbeam.imaging.raytrace import travel_time_tables
 from clbeam.imaging.seabed_band import pick_seabed_depth_m, seabed_window_m
 from clbeam.imaging.signal import compress_analytic, pulse_band_hz, upsample_analytic
@@ -466,7 +466,8 @@ class Imager:
         context = PingContext.of_ping(ping, self.grid, self.options.sound_speed_m_s, n_channels=inp.n_channels)
         cf_smooth = peaks = None
         if sums.cf is not None:
-            cf_smooth = hann_smooth(sums.cf)
+            cf_smooth = hann_smooth(sums.cf) if range_window_m is None else \
+                hann_smooth_in_windows(sums.cf, user_windows(self.grid, range_window_m))
             refine = self._refiner(inp, setting, cf_smooth, sums.intensity)
             peaks = self.peak_rows(context, cf_smooth, sums.intensity, refine=refine)
         t["postprocess_s"] = time.perf_counter() - t0

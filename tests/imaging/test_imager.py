@@ -7,6 +7,7 @@ import pytest
 from scenes import point_ping, polar_point
 
 from clbeam.imaging.imager import Imager, ImagingOptions
+from clbeam.imaging.postprocess import hann_smooth
 from clbeam.model.grid import PolarGrid
 
 R0, A0 = 120.0, 23.0
@@ -130,6 +131,9 @@ def test_seabed_band_computes_only_the_band_and_keeps_its_values():
     np.testing.assert_array_equal(band.cf[inside], full.cf[inside])
     assert np.all(band.intensity[outside] == 0)
     assert outside.mean() > 0.5  # most of the grid was skipped
+    # the smoothed CF, computed on the band's cells only, is that of the whole band image
+    np.testing.assert_array_equal(band.cf_smooth, hann_smooth(band.cf))
+    assert np.all(band.cf[outside] == 0)
 
 
 def test_grid_outside_the_record_is_an_error_not_an_empty_image():

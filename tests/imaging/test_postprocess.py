@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from clbeam.imaging.postprocess import HANN7, coherence_peaks, hann_smooth
+from clbeam.imaging.postprocess import HANN7, coherence_peaks, hann_smooth, hann_smooth_in_windows
 
 
 def test_hann7_is_the_papers_window_normalised():
@@ -110,3 +110,21 @@ def test_a_constant_image_has_no_regional_maximum_as_in_scikit_image():
     img = np.full((5, 7), 0.8)
     assert not local_maxima(img, connectivity=2, allow_borders=True).any()
     assert len(coherence_peaks(img, 0.25)) == 0
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_smoothing_in_windows_equals_the_whole_grids_bit_for_bit(dtype):
+    """A CF that is 0 outside a band of range cells per angle (some bands at the grid's ends, some empty):
+    smoothed on the bands' cells only, every cell equals hann_smooth of the whole grid exactly."""
+    rng = np.random.default_rng(2)
+    n_a, n_r = 40, 90
+    first = rng.integers(0, n_r, n_a)
+    end = np.minimum(first + rng.integers(0, 30, n_a), n_r)
+    first[:3], end[:3] = 0, [n_r, 5, 0]       # the whole row, a band at the start, an empty one
+    first[3], end[3] = n_r - 4, n_r             # a band at the end
+    cf = rng.random((n_a, n_r)).astype(dtype)
+    cf[np.arange(n_r)[None, :] < first[:, None]] = 0
+    cf[np.arange(n_r)[None, :] >= end[:, None]] = 0
+    got = hann_smooth_in_windows(cf, np.stack([first, end], axis=1))
+    assert got.dtype == dtype
+    np.testing.assert_array_equal(got, hann_smooth(cf))
