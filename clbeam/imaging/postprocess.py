@@ -7,6 +7,7 @@ import numpy as np
 
 from clbeam.constants import PEAK_THRESHOLD
 from clbeam.errors import OptionError, require
+from clbeam.model.grid import window_cells
 
 #: 7-point Hann window of the paper, normalised to sum 1
 HANN7 = np.array([0.0, 0.25, 0.75, 1.0, 0.75, 0.25, 0.0]) / 3.0
@@ -68,12 +69,8 @@ def hann_smooth_in_windows(cf: np.ndarray, windows: np.ndarray, weights: np.ndar
     # the cells whose smoothed value can differ from 0, packed row after row with h zeros either side
     lo = np.clip(np.asarray(windows[:, 0], dtype=np.int64) - h, 0, n)
     hi = np.clip(np.asarray(windows[:, 1], dtype=np.int64) + h, lo, n)
-    lengths = hi - lo
-    before = np.r_[0, np.cumsum(lengths)[:-1]]  # cells of the rows before each
-    run = np.arange(int(lengths.sum())) - np.repeat(before, lengths)  # position within its row
-    src = np.repeat(np.arange(n_a) * n + lo, lengths) + run
-    dst = np.repeat(before + 2 * h * np.arange(n_a) + h, lengths) + run
-    packed = np.zeros((1, int(lengths.sum()) + 2 * h * n_a), dtype=x.dtype)
+    src, dst = window_cells(lo, hi - lo, n, pad=h)
+    packed = np.zeros((1, src.size + 2 * h * n_a), dtype=x.dtype)
     packed[0, dst] = x.reshape(-1)[src]
     out = np.zeros_like(x)
     out.reshape(-1)[src] = hann_smooth(packed, weights)[0, dst]

@@ -117,3 +117,25 @@ class PolarGrid:
         return c[0] + self.ranges_m[None, :] * np.sin(th), c[1] + self.ranges_m[None, :] * np.cos(th)
 
 
+
+
+def window_cells(first: np.ndarray, lengths: np.ndarray, n_range: int, *, pad: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The cells of a window of range cells per angle row, row after row: their flat index in the
+    ``(n_rows, n_range)`` grid, and their index in a packed array that gives each row's window ``pad``
+    empty cells either side (0: the windows back to back).
+
+    Parameters
+    ----------
+    first, lengths : numpy.ndarray
+        ``(n_rows,)`` each window's first range index and its number of cells.
+    n_range : int
+        Range cells of a grid row.
+    pad : int
+        Empty cells before and after each row's window in the packed array.
+    """
+    first, lengths = np.asarray(first, dtype=np.int64), np.asarray(lengths, dtype=np.int64)
+    before = np.r_[0, np.cumsum(lengths)[:-1]]  # cells of the rows before each
+    run = np.arange(int(lengths.sum())) - np.repeat(before, lengths)  # position within its row
+    grid_index = np.repeat(np.arange(lengths.size) * n_range + first, lengths) + run
+    packed_index = np.repeat(before + 2 * pad * np.arange(lengths.size) + pad, lengths) + run
+    return grid_index, packed_index

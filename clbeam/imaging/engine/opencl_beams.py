@@ -12,6 +12,7 @@ import numpy as np
 
 from clbeam.imaging.engine.beams import BeamPlan, consistent_supports
 from clbeam.imaging.engine.clsupport import output_macros, pyopencl
+from clbeam.model.grid import window_cells
 
 #: work-items per work-group along range
 LOCAL_RANGES = 64
@@ -98,8 +99,7 @@ class _TileOutputs:
         na, n_cells = lengths.size, int(lengths.sum())
         whole = n_cells == na * self.n_r  # every cell: the packed layout is the grid's
         # where the packed cells go in the tile's flattened rows
-        spread = None if whole else (np.repeat(np.arange(na) * self.n_r + first - np.r_[0, np.cumsum(lengths)[:-1]],
-                                               lengths) + np.arange(n_cells))
+        spread = None if whole else window_cells(first, lengths, self.n_r)[0]
         for name, arr in self.full.items():
             planes = [arr[0, a0:a0 + na], arr[1, a0:a0 + na]] if name == "s" else [arr[a0:a0 + na]]
             for k, plane in enumerate(planes):  # contiguous rows: copied straight in when the tile is whole
