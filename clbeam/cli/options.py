@@ -172,7 +172,14 @@ def options_from_args(args, **overrides):
 def requested_outputs(args) -> tuple:
     """The ``--outputs`` names as given: the engine's (``intensity``, ``cf``, ``sums``) and the image file's
     ``cf_smooth``, which :func:`options_from_args` leaves to the host (it needs ``cf``)."""
-    return tuple(s.strip() for s in args.outputs.split(",") if s.strip())
+    from clbeam.imaging.engine.common import OUTPUTS
+
+    names = tuple(s.strip() for s in args.outputs.split(",") if s.strip())
+    known = (*OUTPUTS, "cf_smooth")
+    bad = [n for n in names if n not in known]
+    if bad:
+        raise OptionError(f"output '{bad[0]}' is unknown, expected some of {', '.join(known)}")
+    return names
 
 
 def parse_beams(text: str):

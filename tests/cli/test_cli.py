@@ -94,6 +94,7 @@ def test_reference_backend_gives_the_same_image(ping_file, tmp_path):
     (["image", "missing.nc", "-o", "x.nc"], "missing.nc: no such file"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--range-res", "0"], "range resolution must be > 0"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--outputs", "intensity,colour"], "output 'colour' is unknown"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--outputs", "cf,cf_smoth"], "expected some of intensity, cf, sums, cf_smooth"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--interp", "exact"], "reference backend only"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--device", "no-such-gpu"], "no OpenCL device matches"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--sound-speed", "900"], "within 1300-1700"),
