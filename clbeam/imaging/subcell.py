@@ -41,8 +41,8 @@ import numpy as np
 
 from clbeam.errors import OptionError
 from clbeam.imaging.engine.common import BeamformInput, InterpMode, Sums, interp_mode
+from clbeam.imaging.engine.points import point_grid, point_tables, straight_ray_values
 from clbeam.imaging.postprocess import HANN7
-from clbeam.imaging.raytrace import TravelTimeTables
 from clbeam.model.grid import PolarGrid
 
 #: range searched either side of the cell, in range steps, and the search's step in range steps
@@ -273,7 +273,7 @@ class _Evaluator:
     def __call__(self, ranges_m: np.ndarray, angles_deg: np.ndarray, outputs=("intensity", "cf")) -> Sums:
         r = np.asarray(ranges_m, dtype=np.float64).ravel()
         a = np.asarray(angles_deg, dtype=np.float64).ravel()
-        points = PolarGrid(np.array([1.0]), np.linspace(-90.0, 90.0, r.size + 1)[:-1])
+        points = point_grid(r.size)
         tables = _point_tables(self.tables, self.grid, r, a, self.inp.sound_speed_m_s, points)
         sums = self.engine.beamform(dataclasses.replace(self.inp, tables=tables), points, interp=self.mode.name,
                                     outputs=outputs)
@@ -309,21 +309,13 @@ def sums_at_points(engine, inp: BeamformInput, ranges_m: np.ndarray, angles_deg:
 
 
 def _point_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: np.ndarray, sound_speed_m_s: float,
-                  points: PolarGrid) -> TravelTimeTables:
+                  points: PolarGrid):
     """Travel-time tables of the points (one per angle of ``points``): straight rays at
     ``sound_speed_m_s``, or ``tables`` of ``grid`` interpolated bilinearly."""
-    th = np.deg2rad(angles_deg)
     if tables is None:
-        values = {"time_s": ranges_m / sound_speed_m_s, "launch_sin": np.sin(th), "launch_cos": np.cos(th),
-                  "wavefront_radius_m": ranges_m}
-        c, depth = sound_speed_m_s, 0.0
-    else:
-        values = _bilinear_tables(tables, grid, ranges_m, angles_deg)
-        c, depth = tables.centre_speed_m_s, tables.centre_depth_m
-    col = {k: np.asarray(v, dtype=np.float64)[:, None] for k, v in values.items()}
-    return TravelTimeTables(time_s=col["time_s"], launch_sin=col["launch_sin"], launch_cos=col["launch_cos"],
-                            path_length_m=col["wavefront_radius_m"], wavefront_radius_m=col["wavefront_radius_m"],
-                            reachable=np.isfinite(col["time_s"]), centre_speed_m_s=c, centre_depth_m=depth, grid=points)
+        return point_tables(straight_ray_values(ranges_m, angles_deg, sound_speed_m_s), sound_speed_m_s, 0.0, points)
+    return point_tables(_bilinear_tables(tables, grid, ranges_m, angles_deg), tables.centre_speed_m_s,
+                        tables.centre_depth_m, points)
 
 
 def _bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: np.ndarray) -> dict:

@@ -258,37 +258,6 @@ def _outputs(s, q, m, w, outputs, min_channels: int = 1) -> dict:
     return out
 
 
-def flagged_runs(flagged: np.ndarray, max_windows: int = 3) -> list[np.ndarray]:
-    """The flagged cells as per-angle range windows to image directly.
-
-    Returns ``[(n_angle, 2) first/end index, ...]``: the k-th contiguous run of
-    flagged cells of every angle in the k-th window (empty where an angle has
-    fewer), the runs from the ``max_windows``-th on merged into the last
-    window (cells between them are imaged directly too, which changes no value).
-    """
-    n_a, n_r = flagged.shape
-    some = np.flatnonzero(flagged.any(axis=1))  # usually few angles: the run search on those only
-    if some.size == 0:
-        return []
-    f = np.zeros((some.size, n_r + 2), dtype=np.int8)
-    f[:, 1:-1] = flagged[some]
-    d = np.diff(f, axis=1)
-    rows, starts = np.nonzero(d == 1)          # row-major: the runs of each row in order
-    _, ends = np.nonzero(d == -1)
-    rows = some[rows]
-    k = np.minimum(np.arange(rows.size) - np.searchsorted(rows, rows), max_windows - 1)
-    out = []
-    for run in range(int(k.max()) + 1):
-        sel = k == run
-        win = np.zeros((n_a, 2), dtype=np.int64)
-        win[:, 0] = n_r
-        np.minimum.at(win[:, 0], rows[sel], starts[sel])
-        np.maximum.at(win[:, 1], rows[sel], ends[sel])
-        win[:, 0] = np.minimum(win[:, 0], win[:, 1])
-        out.append(win)
-    return out
-
-
 def interpolation_error(sampling: BeamSampling, n: int = 64) -> float:
     """Mean relative error power of the angular interpolation, ``E = <|H(x, nu) - 1|^2>``.
 

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from clbeam.errors import GeometryError, GridError, OptionError, require
-from clbeam.imaging.engine.beams import angular_band_limit, beam_plan, flagged_runs, interpolate_beams
+from clbeam.imaging.engine.beams import angular_band_limit, beam_plan, interpolate_beams
+from clbeam.imaging.engine.points import node_tables
 from clbeam.model.grid import PolarGrid
 
 #: outputs a caller may request
@@ -467,21 +468,22 @@ class Engine:
         return sums.rescaled(exponent)
 
     def _beam_sampled(self, inp, grid, mode, outs, range_window_m, scale, plan) -> Sums:
-        """Sums on the plan's beams, interpolated to ``grid``; flagged cells imaged directly."""
+        """Sums on the plan's beams, interpolated to ``grid``; flagged cells imaged directly, as points."""
         weighted = inp.weights is not None
         beam = self._beamform(inp.for_grid(plan.grid), plan.grid, mode, frozenset({"sums", "signature"}),
                               plan.beam_window_m, scale)
         out_windows = user_windows(grid, range_window_m) if range_window_m is not None \
             else np.tile([0, grid.shape[1]], (grid.shape[0], 1))
         arrays, flagged = self._interpolate_beams(plan, beam, outs, out_windows, weighted, inp.min_channels)
-        for window in flagged_runs(flagged):
-            # only the angles with flagged cells, over the full range axis (its length is a kernel constant)
-            rows = np.flatnonzero(window[:, 1] > window[:, 0])
-            sub = PolarGrid(grid.ranges_m, grid.angles_deg[rows], grid.centre_yz_m, grid.beyond_vertical)
-            direct = self._beamform(inp.for_grid(sub), sub, mode, outs, _window_m(sub, window[rows]), scale)
-            ii, jj = np.nonzero(flagged[rows] & _in_windows(window[rows], grid.shape[1]))
+        # flagged cells lie inside the windows; usually a few thousand spread over every angle, so they are
+        # imaged as a list of points rather than as the angle rows they fall on
+        rows, cols = np.divmod(np.flatnonzero(flagged), grid.shape[1])
+        if rows.size:
+            tables = node_tables(inp, grid, rows, cols)
+            direct = self._beamform(dataclasses.replace(inp, tables=tables, table_source=None), tables.grid, mode,
+                                    outs, None, scale)
             for name, value in _sums_arrays(direct).items():
-                arrays[name][rows[ii], jj] = value[ii, jj]
+                arrays[name][rows, cols] = value[:, 0]
         return _sums_from(arrays)
 
     def _exponent(self, inp: BeamformInput) -> int:
@@ -502,19 +504,6 @@ class Engine:
 
     def _beamform(self, inp, grid, mode, outs, range_window_m, scale: float) -> Sums:
         raise NotImplementedError
-
-
-def _window_m(grid: PolarGrid, window: np.ndarray) -> np.ndarray:
-    """Per-angle index windows ``[first, end)`` as the inclusive metre intervals :func:`user_windows` reads."""
-    n_r = grid.shape[1]
-    lo = grid.ranges_m[np.minimum(window[:, 0], n_r - 1)]
-    hi = grid.ranges_m[np.maximum(window[:, 1] - 1, 0)]
-    return np.where((window[:, 1] > window[:, 0])[:, None], np.column_stack([lo, hi]), [1.0, -1.0])
-
-
-def _in_windows(window: np.ndarray, n_range: int) -> np.ndarray:
-    j = np.arange(n_range)[None, :]
-    return (j >= window[:, :1]) & (j < window[:, 1:])
 
 
 def _sums_arrays(sums: Sums) -> dict:

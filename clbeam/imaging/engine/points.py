@@ -1,0 +1,53 @@
+"""The delay-and-sum at a list of points instead of a grid.
+
+A point is a cell with its own travel-time table entry: the two-way time
+from the grid centre, its ray's launch direction and wavefront radius.  The
+engine images ``n`` points as a grid of ``n`` angles and one range whose
+tables hold them, so every backend, mode and precision runs them unchanged.
+The beam-sampled imaging images its flagged cells this way (a few thousand
+cells scattered over the whole grid), the peak refinement its local grids.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from clbeam.imaging.raytrace.tables import TravelTimeTables
+from clbeam.model.grid import PolarGrid
+
+
+def point_grid(n_points: int) -> PolarGrid:
+    """The grid of ``n_points`` points: one range, an angle per point (its values are not used: the tables hold
+    the points)."""
+    return PolarGrid(np.array([1.0]), np.linspace(-90.0, 90.0, n_points + 1)[:-1])
+
+
+def straight_ray_values(ranges_m: np.ndarray, angles_deg: np.ndarray, sound_speed_m_s: float) -> dict:
+    """Table values of points along straight rays at ``sound_speed_m_s`` (m/s): one-way time (s), launch
+    direction and wavefront radius (m), each shaped like ``ranges_m``."""
+    th = np.deg2rad(angles_deg)
+    return {"time_s": ranges_m / sound_speed_m_s, "launch_sin": np.sin(th), "launch_cos": np.cos(th),
+            "wavefront_radius_m": ranges_m}
+
+
+def point_tables(values: dict, centre_speed_m_s: float, centre_depth_m: float, points: PolarGrid) -> TravelTimeTables:
+    """The travel-time tables of ``points`` (:func:`point_grid`) from per-point values (as
+    :func:`straight_ray_values`; NaN time where no ray reaches)."""
+    col = {k: np.asarray(v, dtype=np.float64).reshape(-1, 1) for k, v in values.items()}
+    return TravelTimeTables(time_s=col["time_s"], launch_sin=col["launch_sin"], launch_cos=col["launch_cos"],
+                            path_length_m=col["wavefront_radius_m"], wavefront_radius_m=col["wavefront_radius_m"],
+                            reachable=np.isfinite(col["time_s"]), centre_speed_m_s=centre_speed_m_s,
+                            centre_depth_m=centre_depth_m, grid=points)
+
+
+def node_tables(inp, grid: PolarGrid, rows: np.ndarray, cols: np.ndarray) -> TravelTimeTables:
+    """The tables of the cells ``(rows[k], cols[k])`` of ``grid`` as points: the grid's own tables at those
+    cells (``inp.tables`` or ``inp.table_source``), else straight rays at ``inp.sound_speed_m_s``."""
+    points = point_grid(rows.size)
+    tables = inp.for_grid(grid).tables
+    if tables is None:
+        values = straight_ray_values(grid.ranges_m[cols], grid.angles_deg[rows], inp.sound_speed_m_s)
+        return point_tables(values, inp.sound_speed_m_s, 0.0, points)
+    values = {name: getattr(tables, name)[rows, cols]
+              for name in ("time_s", "launch_sin", "launch_cos", "wavefront_radius_m")}
+    return point_tables(values, tables.centre_speed_m_s, tables.centre_depth_m, points)
