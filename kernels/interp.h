@@ -45,6 +45,57 @@
 
 #define PI_R ((real_t)3.14159265358979323846)
 
+#if INTERP == 3 && !REAL_IS_DOUBLE
+/* Lanczos in float32: the weight of tap m (x = t + A - 1 - m) as a polynomial in
+ * s = t - 1/2, least-squares fitted to L(x) on Chebyshev nodes of s in
+ * [-1/2, 1/2] (clbeam.imaging.engine.lanczos.lanczos_polynomials; within
+ * 1.6e-7 of L evaluated in float32, tests/imaging/test_lanczos_poly.py).
+ * Taps m and 2A-1-m are mirror images, L(x(s)) and L(x(-s)): they share the
+ * even part E(s^2) and the odd part s O(s^2), each 5 coefficients, lowest
+ * power first. */
+#if LANCZOS_A == 4
+__constant float LANCZOS_EVEN[4][5] = {
+    {-1.266088150e-02f, 4.956601560e-02f, 1.181860454e-02f, -3.282438591e-02f, 1.116170734e-02f},
+    {5.990948528e-02f, -2.697713077e-01f, 1.186467111e-01f, 9.790795855e-03f, -8.977108635e-03f},
+    {-1.664152294e-01f, 7.228512764e-01f, -2.318049073e-01f, 1.086122449e-02f, 5.252889358e-03f},
+    {6.203830242e-01f, -5.134930015e-01f, 1.300910115e-01f, -8.581606671e-03f, -1.628354425e-03f}
+};
+__constant float LANCZOS_ODD[4][5] = {
+    {3.124131262e-02f, -1.518085003e-01f, 1.153080389e-01f, -3.287123889e-02f, 4.524598364e-03f},
+    {-6.741748750e-02f, 3.247850537e-01f, -2.359011173e-01f, 6.400899589e-02f, -8.986481465e-03f},
+    {1.677483320e-01f, -7.656253576e-01f, 4.019331634e-01f, -9.692156315e-02f, 1.320733782e-02f},
+    {-1.305212140e+00f, 1.348976493e+00f, -5.413550138e-01f, 1.193249002e-01f, -1.582613029e-02f}
+};
+#endif
+#if LANCZOS_A == 8
+__constant float LANCZOS_EVEN[8][5] = {
+    {-2.811276121e-03f, 1.245998032e-02f, -4.449369851e-03f, -1.899929601e-03f, 1.037716400e-03f},
+    {1.065865718e-02f, -5.073596910e-02f, 3.409486637e-02f, -6.806269754e-03f, 1.927872363e-04f},
+    {-2.227979712e-02f, 1.073288843e-01f, -7.756935060e-02f, 1.941148564e-02f, -1.956652850e-03f},
+    {3.925899416e-02f, -1.895833015e-01f, 1.390176862e-01f, -3.636208549e-02f, 4.194688983e-03f},
+    {-6.489751488e-02f, 3.122637570e-01f, -2.245565802e-01f, 5.708432198e-02f, -6.547898985e-03f},
+    {1.078342199e-01f, -5.113306046e-01f, 3.382266760e-01f, -7.500726730e-02f, 8.000211790e-03f},
+    {-2.001459002e-01f, 8.930900693e-01f, -3.874611855e-01f, 7.148963958e-02f, -6.995046511e-03f},
+    {6.325370073e-01f, -5.748716593e-01f, 1.863632947e-01f, -3.058546968e-02f, 2.834845101e-03f}
+};
+__constant float LANCZOS_ODD[8][5] = {
+    {6.299781613e-03f, -3.096586652e-02f, 2.496515773e-02f, -7.901598699e-03f, 1.235298347e-03f},
+    {-9.543845430e-03f, 4.691066593e-02f, -3.781745955e-02f, 1.197406836e-02f, -1.875300426e-03f},
+    {1.394780818e-02f, -6.848897785e-02f, 5.493618175e-02f, -1.724995673e-02f, 2.676671371e-03f},
+    {-2.051506378e-02f, 1.004840657e-01f, -7.957807183e-02f, 2.445724979e-02f, -3.704093164e-03f},
+    {3.201496974e-02f, -1.559031904e-01f, 1.198195815e-01f, -3.504591435e-02f, 5.042013247e-03f},
+    {-5.797241256e-02f, 2.779824436e-01f, -1.966164708e-01f, 5.065466464e-02f, -6.693799049e-03f},
+    {1.492322981e-01f, -6.736132503e-01f, 3.236276209e-01f, -6.966158748e-02f, 8.383027278e-03f},
+    {-1.281373501e+00f, 1.230428576e+00f, -4.401114583e-01f, 8.387032896e-02f, -9.505508468e-03f}
+};
+#endif
+
+static inline vreal poly5(__constant const float *c, vreal u)
+{
+    return (((c[4] * u + c[3]) * u + c[2]) * u + c[1]) * u + c[0];
+}
+#endif
+
 /* tmp[0 .. TAP_REALS-1] = p[0 .. TAP_REALS-1] with vector loads */
 #if TAP_REALS <= 16
 #define LOAD_TAP_REALS(tmp, p) CAT(vstore, TAP_REALS)(CAT(vload, TAP_REALS)(0, (p)), 0, (tmp))
@@ -121,8 +172,21 @@ static inline void interpolate(__global const real_t *restrict data, vint first,
     const vreal w3 = (real_t)0.5 * t3 - (real_t)0.5 * t2;
     *out_re = w0 * re[0] + w1 * re[1] + w2 * re[2] + w3 * re[3];
     *out_im = w0 * im[0] + w1 * im[1] + w2 * im[2] + w3 * im[3];
+#elif INTERP == 3 && !REAL_IS_DOUBLE
+    /* no division and no transcendental function: 4-5x cheaper than the exact form below on a CPU */
+    const vreal s = t - (real_t)0.5, u = s * s;
+    vreal sr = (vreal)0, si = (vreal)0;
+#pragma unroll
+    for (int m = 0; m < LANCZOS_A; ++m) {
+        const vreal e = poly5(LANCZOS_EVEN[m], u), o = s * poly5(LANCZOS_ODD[m], u);
+        const vreal w_lo = e + o, w_hi = e - o;   /* taps m and NTAPS - 1 - m */
+        sr += w_lo * re[m] + w_hi * re[NTAPS - 1 - m];
+        si += w_lo * im[m] + w_hi * im[NTAPS - 1 - m];
+    }
+    *out_re = sr;
+    *out_im = si;
 #elif INTERP == 3
-    /* Lanczos: L(x) = A sin(pi x) sin(pi x / A) / (pi x)^2 for |x| < A.
+    /* Lanczos (float64, exact): L(x) = A sin(pi x) sin(pi x / A) / (pi x)^2 for |x| < A.
      * With x_m = t - m, sin(pi x_m) = (-1)^m sin(pi t), and sin(pi x_m / A)
      * follows by angle addition, so one sincos pair serves all 2A taps.
      * sinpi keeps sin(pi t) accurate for t near 1, where the tap at x = t - 1
