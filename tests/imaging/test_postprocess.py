@@ -23,6 +23,23 @@ def test_hann_smoothing_is_a_zero_padded_convolution_along_range():
     assert got.max() <= 1.0 and got.min() >= 0.0
 
 
+def test_a_large_image_is_smoothed_in_blocks_of_rows_with_the_same_values(monkeypatch):
+    """Above the block size the rows are smoothed in parallel blocks: the values are those of one block, bit
+    for bit, and the convolution's (scipy.ndimage, zero padding)."""
+    from scipy.ndimage import correlate1d
+
+    import clbeam.imaging.postprocess as postprocess
+
+    cf = np.random.default_rng(3).uniform(0, 1, (37, 901)).astype(np.float32)
+    monkeypatch.setattr(postprocess, "SMOOTHING_BLOCK_CELLS", 4000)
+    monkeypatch.setattr(postprocess.os, "cpu_count", lambda: 4)
+    blocks = hann_smooth(cf)
+    monkeypatch.setattr(postprocess, "MAX_SMOOTHING_THREADS", 1)
+    whole = hann_smooth(cf)
+    assert np.array_equal(blocks, whole)
+    np.testing.assert_allclose(blocks, correlate1d(cf.astype(np.float64), HANN7, axis=1, mode="constant"), atol=1e-6)
+
+
 def brute_force_regional_maxima(img):
     """Connected (8-neighbour) plateaus strictly above every neighbour."""
     n_a, n_r = img.shape
