@@ -97,7 +97,7 @@ def hann_smooth_in_windows(cf: np.ndarray, windows: np.ndarray, weights: np.ndar
     src, dst = window_cells(lo, hi - lo, n, pad=h)
     packed = np.zeros((1, src.size + 2 * h * n_a), dtype=x.dtype)
     packed[0, dst] = x.reshape(-1)[src]
-    out = np.zeros_like(x)
+    out = np.zeros(x.shape, dtype=x.dtype)  # calloc: the pages outside the band are never written (zeros_like fills them)
     out.reshape(-1)[src] = hann_smooth(packed, weights)[0, dst]
     return out
 

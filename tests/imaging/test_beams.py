@@ -142,9 +142,19 @@ def test_kernel_equals_its_numpy_form_with_mismatched_taps(f64):
                 m=m, w=m * 0.5, signature=g)
     win = np.tile([10, nr - 10], (GRID.shape[0], 1))
     outs = frozenset({"intensity", "cf", "sums"})
-    got, got_flag = f64._interpolate_beams(plan, beam, outs, win, True)
-    want, want_flag = interpolate_beams(plan, beam, outs, win, True)
-    np.testing.assert_array_equal(got_flag, want_flag)
+    def as_grid(cells):
+        grid = np.zeros(GRID.shape, dtype=bool)
+        grid[cells] = True
+        assert grid.sum() == cells[0].size                    # each flagged cell once
+        return grid
+
+    want, want_cells = interpolate_beams(plan, beam, outs, win, True)
+    want_flag = as_grid(want_cells)
+    # in tiles of 100 angle rows too: the flagged cells' angle indices count from each tile's first row
+    tiled = type(f64)(precision="float64", max_tile_cells=GRID.shape[1] * 100)
+    for engine in (f64, tiled):
+        got, got_cells = engine._interpolate_beams(plan, beam, outs, win, True)
+        np.testing.assert_array_equal(as_grid(got_cells), want_flag)
     assert want_flag.sum() > 0 and not want_flag[:, :10].any()
     on_beam = plan.first_tap[:, None] + np.arange(plan.taps)
     assert want_flag[np.any(on_beam == 50, axis=1)][:, 300:400].all()   # the other set is told apart

@@ -198,9 +198,9 @@ def interpolate_beams(plan: BeamPlan, beam, outputs: frozenset, out_windows: np.
 
     Returns
     -------
-    (dict, numpy.ndarray)
+    (dict, (numpy.ndarray, numpy.ndarray))
         The output arrays by name (``intensity``, ``cf``, ``s``, ``q``,
-        ``m``, ``w``) and the bool ``(n_angle, n_range)`` cells that could
+        ``m``, ``w``) and the angle and range indices of the cells that could
         not be interpolated (their taps disagree on ``M`` or ``W``).
     """
     idx = plan.first_tap[:, None] + np.arange(plan.taps)[None, :]          # (n_angle, taps)
@@ -216,7 +216,7 @@ def interpolate_beams(plan: BeamPlan, beam, outputs: frozenset, out_windows: np.
     m = np.where(keep, m_taps[:, 0], 0)
     w_out = np.where(keep, beam.w[idx][:, 0], 0.0) if weighted else None
     s, q = np.where(keep, s, 0), np.where(keep, q, 0.0)
-    return _outputs(s, q, m, w_out, outputs, min_channels), flagged
+    return _outputs(s, q, m, w_out, outputs, min_channels), np.nonzero(flagged)
 
 
 def consistent_supports(beam, taps: int, weighted: bool) -> np.ndarray:

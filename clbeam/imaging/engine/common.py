@@ -477,7 +477,7 @@ class Engine:
         arrays, flagged = self._interpolate_beams(plan, beam, outs, out_windows, weighted, inp.min_channels)
         # flagged cells lie inside the windows; usually a few thousand spread over every angle, so they are
         # imaged as a list of points rather than as the angle rows they fall on
-        rows, cols = np.divmod(np.flatnonzero(flagged), grid.shape[1])
+        rows, cols = flagged
         if rows.size:
             tables = node_tables(inp, grid, rows, cols)
             direct = self._beamform(dataclasses.replace(inp, tables=tables, table_source=None), tables.grid, mode,

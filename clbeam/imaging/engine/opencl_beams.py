@@ -60,12 +60,12 @@ def interpolate_beams_cl(engine, plan: BeamPlan, beam, outs: frozenset, out_wind
                np.int32(na), np.int32(n_cells))
         out.read(a0, first[rows], lengths[rows])
     engine.queue.finish()
-    return out.arrays(), out.flag.astype(bool)
+    return out.arrays(), out.flagged()
 
 
 class _TileOutputs:
-    """Host arrays of the output grid (0 outside the windows) and the device buffers of one tile of angle rows,
-    whose cells come back packed window after window."""
+    """Host arrays of the output grid (0 outside the windows), the flagged cells' indices, and the device
+    buffers of one tile of angle rows, whose cells come back packed window after window."""
 
     NAMES = ("intensity", "cf", "s", "q", "m", "w", "flag")
 
@@ -79,15 +79,15 @@ class _TileOutputs:
         # the kernel's packed cell indices are 32-bit
         self.rows = max(1, min(engine.tile_rows(n_a, n_r, per_cell), (2**31 - 1) // max(n_r, 1)))
         self.full = {}
-        for name in wanted:
-            dtype = np.uint8 if name == "flag" else np.int32 if name == "m" else real
+        for name in wanted - {"flag"}:  # the flags come back as the flagged cells' indices, not as a grid
+            dtype = np.int32 if name == "m" else real
             self.full[name] = np.zeros(((2,) if name == "s" else ()) + (n_a, n_r), dtype=dtype)
         itemsize = np.dtype(real).itemsize
         size = {"m": 4, "flag": 1}
         self.bufs = {name: engine.buffer("bout_" + name, (2 if name == "s" else 1) * self.rows * n_r
                                           * size.get(name, itemsize) if name in wanted else 16)
                      for name in self.NAMES}
-        self.flag = self.full["flag"]
+        self._flagged: list = []
 
     def buffers(self) -> list:
         """The output buffers in the kernel's argument order."""
@@ -100,6 +100,11 @@ class _TileOutputs:
         whole = n_cells == na * self.n_r  # every cell: the packed layout is the grid's
         # where the packed cells go in the tile's flattened rows
         spread = None if whole else window_cells(first, lengths, self.n_r)[0]
+        flags = np.empty(n_cells, dtype=np.uint8)
+        cl.enqueue_copy(queue, flags, self.bufs["flag"], is_blocking=True)
+        at = np.flatnonzero(flags)
+        rows, cols = np.divmod(at if whole else spread[at], self.n_r)
+        self._flagged.append(np.stack([rows + a0, cols]))
         for name, arr in self.full.items():
             planes = [arr[0, a0:a0 + na], arr[1, a0:a0 + na]] if name == "s" else [arr[a0:a0 + na]]
             for k, plane in enumerate(planes):  # contiguous rows: copied straight in when the tile is whole
@@ -109,9 +114,14 @@ class _TileOutputs:
                 if not whole:
                     plane.reshape(-1)[spread] = dest
 
+    def flagged(self) -> tuple[np.ndarray, np.ndarray]:
+        """Angle and range indices of the flagged cells."""
+        both = np.concatenate(self._flagged or [np.zeros((2, 0), dtype=np.int64)], axis=1)
+        return both[0], both[1]
+
     def arrays(self) -> dict:
         """The outputs by name, ``s`` complex."""
-        out = {k: v for k, v in self.full.items() if k != "flag"}
+        out = dict(self.full)
         if "s" in out:
             out["s"] = out["s"][0] + 1j * out["s"][1]
         return out
