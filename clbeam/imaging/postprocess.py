@@ -39,19 +39,21 @@ def hann_smooth(cf: np.ndarray, weights: np.ndarray = HANN7) -> np.ndarray:
     x = np.asarray(cf)
     x = x if x.dtype in (np.float32, np.float64) else x.astype(np.float64)
     w = np.asarray(weights, dtype=x.dtype)
-    out = np.empty_like(x)
-    rows = x.reshape(-1, x.shape[-1]) if x.ndim else x.reshape(1, 1)
-    blocks = min(os.cpu_count() or 1, MAX_SMOOTHING_THREADS, max(1, x.size // SMOOTHING_BLOCK_CELLS), len(rows))
+    if x.size == 0:
+        return x.copy()
+    rows = x.reshape(-1, x.shape[-1])
+    out = np.empty(rows.shape, dtype=x.dtype)  # C order whatever the input's, so that the blocks are views
+    blocks = min(len(os.sched_getaffinity(0)), MAX_SMOOTHING_THREADS, max(1, x.size // SMOOTHING_BLOCK_CELLS),
+                 len(rows))
     if blocks <= 1:
-        _smooth_rows(rows, w, out.reshape(rows.shape))
-        return out
+        _smooth_rows(rows, w, out)
+        return out.reshape(x.shape)
     edges = np.linspace(0, len(rows), blocks + 1).astype(int)
-    flat_out = out.reshape(rows.shape)
     # NumPy's ufuncs release the GIL: the blocks run in parallel
     with ThreadPoolExecutor(max_workers=blocks) as pool:
-        list(pool.map(lambda k: _smooth_rows(rows[edges[k]:edges[k + 1]], w, flat_out[edges[k]:edges[k + 1]]),
+        list(pool.map(lambda k: _smooth_rows(rows[edges[k]:edges[k + 1]], w, out[edges[k]:edges[k + 1]]),
                       range(blocks)))
-    return out
+    return out.reshape(x.shape)
 
 
 def _smooth_rows(x: np.ndarray, w: np.ndarray, out: np.ndarray) -> None:

@@ -19,7 +19,7 @@ from scenes import point_ping, polar_point
 
 from clbeam.imaging.engine import INTERP_MODES, get_engine
 from clbeam.imaging.engine.beams import BeamSampling, angular_band_limit, beam_plan, interpolate_beams
-from clbeam.imaging.engine.common import Sums
+from clbeam.imaging.engine.common import Sums, interp_mode
 from clbeam.imaging.engine.errormodel import (
     INTENSITY_FACTOR,
     angular_spectrum,
@@ -128,6 +128,16 @@ def test_cells_of_changing_channel_sets_are_imaged_directly(f64):
     assert short.sum() > 1000                                  # the case is really exercised
     predicted = predicted_beam_db(inp, sampling, GRID)
     assert intensity_error_db(got.intensity[short], direct.intensity[short]) <= predicted + 3
+    # the flagged cells, imaged as points, are the direct image's own values (float64: to rounding)
+    plan = beam_plan(GRID, angular_band_limit(inp.element_offsets_m, inp.source_offset_m, inp.top_frequency_hz,
+                                              inp.sound_speed_m_s, GRID.angles_deg), sampling)
+    beam = f64._beamform(inp, plan.grid, interp_mode("lanczos8"), frozenset({"sums", "signature"}), None, 1.0)
+    _, flagged = interpolate_beams(plan, beam, frozenset({"intensity"}), np.tile([0, GRID.shape[1]], (GRID.shape[0], 1)),
+                                   False)
+    assert flagged[0].size > 100
+    for name in ("intensity", "cf", "s", "q"):
+        np.testing.assert_allclose(getattr(got, name)[flagged], getattr(direct, name)[flagged], rtol=1e-9,
+                                   atol=1e-12 * np.abs(getattr(direct, name)).max(), err_msg=name)
 
 
 def test_kernel_equals_its_numpy_form_with_mismatched_taps(f64):
@@ -140,8 +150,13 @@ def test_kernel_equals_its_numpy_form_with_mismatched_taps(f64):
     g[50, 300:400] += 0.1                                     # as many channels, but another set
     beam = Sums(s=rng.standard_normal((nb, nr)) + 1j * rng.standard_normal((nb, nr)), q=rng.random((nb, nr)) + 2.0,
                 m=m, w=m * 0.5, signature=g)
-    win = np.tile([10, nr - 10], (GRID.shape[0], 1))
     outs = frozenset({"intensity", "cf", "sums"})
+    for win in (np.tile([10, nr - 10], (GRID.shape[0], 1)), np.tile([0, nr], (GRID.shape[0], 1))):  # packed, whole
+        _check_against_numpy_form(f64, plan, beam, outs, win)
+
+
+def _check_against_numpy_form(f64, plan, beam, outs, win):
+    """The OpenCL kernel, whole and in tiles, against interpolate_beams on one output window."""
     def as_grid(cells):
         grid = np.zeros(GRID.shape, dtype=bool)
         grid[cells] = True

@@ -32,12 +32,16 @@ def test_a_large_image_is_smoothed_in_blocks_of_rows_with_the_same_values(monkey
 
     cf = np.random.default_rng(3).uniform(0, 1, (37, 901)).astype(np.float32)
     monkeypatch.setattr(postprocess, "SMOOTHING_BLOCK_CELLS", 4000)
-    monkeypatch.setattr(postprocess.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(postprocess.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
     blocks = hann_smooth(cf)
     monkeypatch.setattr(postprocess, "MAX_SMOOTHING_THREADS", 1)
     whole = hann_smooth(cf)
     assert np.array_equal(blocks, whole)
     np.testing.assert_allclose(blocks, correlate1d(cf.astype(np.float64), HANN7, axis=1, mode="constant"), atol=1e-6)
+    # a 3-D input in Fortran order (its rows are no view of it) and an empty range axis
+    cube = np.asfortranarray(np.random.default_rng(4).uniform(0, 1, (4, 30, 120)))
+    np.testing.assert_allclose(hann_smooth(cube), correlate1d(cube, HANN7, axis=-1, mode="constant"), atol=1e-12)
+    assert hann_smooth(np.zeros((5, 0))).shape == (5, 0)
 
 
 def brute_force_regional_maxima(img):

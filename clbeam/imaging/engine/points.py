@@ -1,7 +1,7 @@
 """The delay-and-sum at a list of points instead of a grid.
 
-A point is a cell with its own travel-time table entry: the two-way time
-from the grid centre, its ray's launch direction and wavefront radius.  The
+A point is a cell with its own travel-time table entry: the one-way time
+from the grid centre, its ray's launch direction, length and wavefront radius.  The
 engine images ``n`` points as a grid of ``n`` angles and one range whose
 tables hold them, so every backend, mode and precision runs them unchanged.
 The beam-sampled imaging images its flagged cells this way (a few thousand
@@ -32,10 +32,12 @@ def straight_ray_values(ranges_m: np.ndarray, angles_deg: np.ndarray, sound_spee
 
 def point_tables(values: dict, centre_speed_m_s: float, centre_depth_m: float, points: PolarGrid) -> TravelTimeTables:
     """The travel-time tables of ``points`` (:func:`point_grid`) from per-point values (as
-    :func:`straight_ray_values`; NaN time where no ray reaches)."""
+    :func:`straight_ray_values`, ``path_length_m`` optional: the wavefront radius when not given, which it is
+    along a straight ray; NaN time where no ray reaches)."""
     col = {k: np.asarray(v, dtype=np.float64).reshape(-1, 1) for k, v in values.items()}
     return TravelTimeTables(time_s=col["time_s"], launch_sin=col["launch_sin"], launch_cos=col["launch_cos"],
-                            path_length_m=col["wavefront_radius_m"], wavefront_radius_m=col["wavefront_radius_m"],
+                            path_length_m=col.get("path_length_m", col["wavefront_radius_m"]),
+                            wavefront_radius_m=col["wavefront_radius_m"],
                             reachable=np.isfinite(col["time_s"]), centre_speed_m_s=centre_speed_m_s,
                             centre_depth_m=centre_depth_m, grid=points)
 
@@ -49,5 +51,5 @@ def node_tables(inp, grid: PolarGrid, rows: np.ndarray, cols: np.ndarray) -> Tra
         values = straight_ray_values(grid.ranges_m[cols], grid.angles_deg[rows], inp.sound_speed_m_s)
         return point_tables(values, inp.sound_speed_m_s, 0.0, points)
     values = {name: getattr(tables, name)[rows, cols]
-              for name in ("time_s", "launch_sin", "launch_cos", "wavefront_radius_m")}
+              for name in ("time_s", "launch_sin", "launch_cos", "path_length_m", "wavefront_radius_m")}
     return point_tables(values, tables.centre_speed_m_s, tables.centre_depth_m, points)
