@@ -112,36 +112,63 @@ def local_contrast(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.n
     r, a = np.asarray(ranges_m, dtype=np.float64), np.asarray(angles_deg, dtype=np.float64)
     (wr, wa), (gr, ga) = window, guard
     echo, clutter = np.full(len(rows), np.nan), np.full(len(rows), np.nan)
-    for k, row in enumerate(rows):
-        i = int(np.argmin(np.abs(a - row["angle_deg"])))
-        j = int(np.argmin(np.abs(r - row["range_m"])))
+    if not rows:
+        return echo, clutter
+    i = _nearest(a, np.array([row["angle_deg"] for row in rows], dtype=np.float64))
+    j = _nearest(r, np.array([row["range_m"] for row in rows], dtype=np.float64))
+    # every row's bounds at once: angle (window, guard) x range (window, guard)
+    (aw, ag), (rw, rg) = _bounds(a, i, (wa, ga)), _bounds(r, j, (wr, gr))
+    for k in range(len(rows)):
         # the window less the cross of the echo's range band and its angle band (inclusion-exclusion)
-        parts = [_box(x, a, r, i, j, h, with_max=h == (gr, ga)) for h in ((wr, wa), (gr, wa), (wr, ga), (gr, ga))]
-        total = parts[0][0] - parts[1][0] - parts[2][0] + parts[3][0]
-        count = parts[0][1] - parts[1][1] - parts[2][1] + parts[3][1]
-        if parts[3][1] and parts[3][2] > 0:
-            echo[k] = 10 * math.log10(parts[3][2])
+        sums = _box_sums(x, aw[k], ag[k], rw[k], rg[k])
+        (total_w, n_w), (total_gr, n_gr), (total_ga, n_ga), (total_g, n_g, peak) = sums
+        total, count = total_w - total_gr - total_ga + total_g, n_w - n_gr - n_ga + n_g
+        if n_g and peak > 0:
+            echo[k] = 10 * math.log10(peak)
         if count > 0 and total > 0:
             clutter[k] = 10 * math.log10(total / count)
     return echo, clutter
 
 
-def _box(x: np.ndarray, a: np.ndarray, r: np.ndarray, i: int, j: int, half: tuple, *,
-         with_max: bool = False) -> tuple[float, int, float]:
-    """Sum, count and (``with_max``) maximum of the finite cells within ``half`` (m of range, degree of angle)
-    of cell ``(i, j)``, bounds from the coordinates (exact on uneven axes; a millionth of a step of slack)."""
-    bounds = []
-    for axis, k, h in ((a, i, half[1]), (r, j, half[0])):
-        slack = 1e-6 * (float(axis[-1] - axis[0]) / max(axis.size - 1, 1))
-        bounds.append((np.searchsorted(axis, axis[k] - h - slack, side="left"),
-                       np.searchsorted(axis, axis[k] + h + slack, side="right")))
-    box = x[bounds[0][0]:bounds[0][1], bounds[1][0]:bounds[1][1]]
-    total = float(box.sum(dtype=np.float64))
-    if math.isfinite(total):  # no NaN or infinity inside (the usual case): no mask to build
-        return total, box.size, (float(box.max()) if with_max and box.size else math.nan)
-    ok = np.isfinite(box)
-    return (float(box[ok].sum(dtype=np.float64)), int(ok.sum()),
-            float(box[ok].max()) if with_max and ok.any() else math.nan)
+def _nearest(axis: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Index of the node of the increasing ``axis`` nearest each value (the first of two equally near)."""
+    hi = np.clip(np.searchsorted(axis, values), 1, max(axis.size - 1, 1))
+    lo = hi - 1
+    pick_hi = np.abs(axis[hi] - values) < np.abs(values - axis[lo])
+    return np.where(pick_hi, hi, lo) if axis.size > 1 else np.zeros(values.size, dtype=np.int64)
+
+
+def _bounds(axis: np.ndarray, k: np.ndarray, halves: tuple) -> list[np.ndarray]:
+    """Per half-size (units of ``axis``), the ``(n, 2)`` index bounds of the nodes within it of nodes ``k``
+    (exact on uneven axes; a millionth of a step of slack)."""
+    slack = 1e-6 * (float(axis[-1] - axis[0]) / max(axis.size - 1, 1))
+    return [np.stack([np.searchsorted(axis, axis[k] - h - slack, side="left"),
+                      np.searchsorted(axis, axis[k] + h + slack, side="right")], axis=1) for h in halves]
+
+
+def _box_sums(x: np.ndarray, aw, ag, rw, rg) -> tuple:
+    """Sum and count of the finite cells of the boxes (angle window x range window), (window x guard range),
+    (guard angle x window), and of the guard box with its largest cell, from one slice covering them all."""
+    a0, a1 = min(aw[0], ag[0]), max(aw[1], ag[1])
+    r0, r1 = min(rw[0], rg[0]), max(rw[1], rg[1])
+    cover = x[a0:a1, r0:r1]
+    finite = math.isfinite(float(cover.sum(dtype=np.float64)))
+    if not finite:  # NaN cells (outside a seabed band) or infinities: masked sums
+        ok = np.isfinite(cover)
+        cover = np.where(ok, cover, 0.0)
+    out = []
+    for (b0, b1), (c0, c1) in ((aw, rw), (aw, rg), (ag, rw), (ag, rg)):
+        box = cover[b0 - a0:b1 - a0, c0 - r0:c1 - r0]
+        count = box.size if finite else int(ok[b0 - a0:b1 - a0, c0 - r0:c1 - r0].sum())
+        out.append((float(box.sum(dtype=np.float64)), count))
+    g = cover[ag[0] - a0:ag[1] - a0, rg[0] - r0:rg[1] - r0]
+    if finite:
+        peak = float(g.max()) if g.size else math.nan
+    else:
+        gok = ok[ag[0] - a0:ag[1] - a0, rg[0] - r0:rg[1] - r0]
+        peak = float(g[gok].max()) if gok.any() else math.nan
+    out[3] = (*out[3], peak)
+    return tuple(out)
 
 
 def noise_floor(intensity: np.ndarray, cf: np.ndarray | None = None) -> float:
