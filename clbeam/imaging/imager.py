@@ -207,7 +207,10 @@ class PingImage:
         The ping's grid centre, source, navigation and sonar (what its peak
         rows and its image file need).
     timings_s : dict
-        Seconds spent per stage.
+        Seconds spent per stage: ``compress_s``, ``image_s``, ``postprocess_s``.
+    stages_s : dict
+        Seconds inside them: the engine's (:attr:`Sums.timings_s`), ``smooth_s`` (the CF's smoothing)
+        and ``peaks_s`` (the peaks, their refinement and detection tests).
     n_channels_used : int
         Channels that took part.
     setting : str
@@ -223,6 +226,7 @@ class PingImage:
     peaks: list
     context: PingContext
     timings_s: dict = field(default_factory=dict)
+    stages_s: dict = field(default_factory=dict)
     n_channels_used: int = 0
     setting: str = ""
 
@@ -465,15 +469,20 @@ class Imager:
         t0 = time.perf_counter()
         context = PingContext.of_ping(ping, self.grid, self.options.sound_speed_m_s, n_channels=inp.n_channels)
         cf_smooth = peaks = None
+        stages = dict(sums.timings_s)
         if sums.cf is not None:
             cf_smooth = hann_smooth(sums.cf) if range_window_m is None else \
                 hann_smooth_in_windows(sums.cf, user_windows(self.grid, range_window_m))
+            stages["smooth_s"] = time.perf_counter() - t0
             refine = self._refiner(inp, setting, cf_smooth, sums.intensity)
             peaks = self.peak_rows(context, cf_smooth, sums.intensity, refine=refine)
         t["postprocess_s"] = time.perf_counter() - t0
+        if "smooth_s" in stages:
+            stages["peaks_s"] = t["postprocess_s"] - stages["smooth_s"]
         return PingImage(ping=ping.index, grid=self.grid,
                          intensity=sums.intensity if "intensity" in outs else None, cf=sums.cf, cf_smooth=cf_smooth,
                          sums=sums if "sums" in outs else None, peaks=peaks or [], context=context, timings_s=t,
+                         stages_s=stages,
                          n_channels_used=inp.n_channels, setting=setting.describe())
 
     def _warn_beyond_record(self, inp: BeamformInput) -> None:

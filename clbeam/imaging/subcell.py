@@ -278,7 +278,7 @@ class _Evaluator:
         sums = self.engine.beamform(dataclasses.replace(self.inp, tables=tables), points, interp=self.mode.name,
                                     outputs=outputs)
         shape = np.shape(ranges_m)
-        return Sums(**{k: None if v is None else v.reshape(shape) for k, v in vars(sums).items()})
+        return Sums(**{k: None if v is None else v.reshape(shape) for k, v in vars(sums).items() if k != "timings_s"})
 
 
 def sums_at_points(engine, inp: BeamformInput, ranges_m: np.ndarray, angles_deg: np.ndarray, *,

@@ -76,3 +76,10 @@ def test_tiny_benchmark_run_writes_table_csv_and_plot(tmp_path):
     assert lin.cells_ch_per_s == pytest.approx(grid.n_cells * 64 / (lin.ms_per_ping / 1e3), rel=1e-9)
     paths = write_report(res, tmp_path)
     assert "| linear |" in markdown_table(res) and paths["plot"].stat().st_size > 10_000
+    # each whole-ping row's stages are timed inside it: they add up to most of its time and never exceed it
+    for row in res.skipping:
+        stages = row["stages_ms"]
+        assert {"direct_s"} <= set(stages) or {"beams_s", "to_grid_s", "flagged_s"} <= set(stages)
+        assert ({"smooth_s", "peaks_s"} <= set(stages)) == (row["what"] != "intensity only")  # no CF, no peaks
+        assert 0.5 * row["ms_per_ping"] <= sum(stages.values()) <= row["ms_per_ping"]
+        assert f"- {row['what']}: compress " in markdown_table(res)

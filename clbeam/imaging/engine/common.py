@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -227,6 +228,10 @@ class Sums:
         ``G = Σ g_n`` over the contributing channels (:func:`channel_signature`):
         equal ``G`` means the same channels contributed (internal output
         ``"signature"`` of beam-sampled imaging).
+    timings_s : dict
+        Seconds per stage of the call that made them: ``direct_s``, or ``beams_s`` (the sums on the
+        beams), ``to_grid_s`` (their interpolation to the grid, read back) and ``flagged_s`` (the cells
+        imaged directly).
     """
 
     intensity: np.ndarray | None = None
@@ -236,6 +241,7 @@ class Sums:
     m: np.ndarray | None = None
     w: np.ndarray | None = None
     signature: np.ndarray | None = None
+    timings_s: dict = field(default_factory=dict)
 
     def rescaled(self, exponent: int) -> "Sums":
         """These sums of data divided by ``2**exponent``, returned to the data's
@@ -462,7 +468,9 @@ class Engine:
                                        inp.sample_rate_hz / inp.samples_per_m, grid.angles_deg)
             plan = beam_plan(grid, limit, beams, range_window_m)
         if plan is None:
+            t0 = time.perf_counter()
             sums = self._beamform(inp.for_grid(grid), grid, mode, outs, range_window_m, scale)
+            sums.timings_s = {"direct_s": time.perf_counter() - t0}
         else:
             sums = self._beam_sampled(inp, grid, mode, outs, range_window_m, scale, plan)
         return sums.rescaled(exponent)
@@ -470,11 +478,14 @@ class Engine:
     def _beam_sampled(self, inp, grid, mode, outs, range_window_m, scale, plan) -> Sums:
         """Sums on the plan's beams, interpolated to ``grid``; flagged cells imaged directly, as points."""
         weighted = inp.weights is not None
+        t = [time.perf_counter()]
         beam = self._beamform(inp.for_grid(plan.grid), plan.grid, mode, frozenset({"sums", "signature"}),
                               plan.beam_window_m, scale)
+        t.append(time.perf_counter())
         out_windows = user_windows(grid, range_window_m) if range_window_m is not None \
             else np.tile([0, grid.shape[1]], (grid.shape[0], 1))
         arrays, flagged = self._interpolate_beams(plan, beam, outs, out_windows, weighted, inp.min_channels)
+        t.append(time.perf_counter())
         # flagged cells lie inside the windows; usually a few thousand spread over every angle, so they are
         # imaged as a list of points rather than as the angle rows they fall on
         rows, cols = flagged
@@ -484,7 +495,9 @@ class Engine:
                                     outs, None, scale)
             for name, value in _sums_arrays(direct).items():
                 arrays[name][rows, cols] = value[:, 0]
-        return _sums_from(arrays)
+        sums = _sums_from(arrays)
+        sums.timings_s = {"beams_s": t[1] - t[0], "to_grid_s": t[2] - t[1], "flagged_s": time.perf_counter() - t[2]}
+        return sums
 
     def _exponent(self, inp: BeamformInput) -> int:
         """:func:`amplitude_exponent` of the data, kept for the last data token."""
