@@ -98,9 +98,9 @@ class RefinedPeaks:
 
 def subcell_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray, mode: InterpMode, *,
                   cf_smooth: np.ndarray, intensity: np.ndarray | None, threshold: float) -> RefinedPeaks:
-    """Peaks refined (:func:`refine_peaks`) and one entry kept per echo (:func:`merge_refined`:
-    within half a range step (at least a quarter of the pulse's range resolution) and a quarter of the
-    band top's beam width), by decreasing refined CF."""
+    """Peaks refined (:func:`refine_peaks`) and one entry kept per echo, its most intense refinement
+    (:func:`merge_refined`: within half a range step (at least a quarter of the pulse's range resolution)
+    and a quarter of the band top's beam width), by decreasing refined CF."""
     refined = refine_peaks(engine, inp, grid, peaks, mode, cf_smooth=cf_smooth, intensity=intensity, threshold=threshold)
     if refined.range_m.size == 0:
         return refined
@@ -108,7 +108,10 @@ def subcell_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray
     resolution_m = inp.sound_speed_m_s / (2.0 * (inp.band_hz[1] - inp.band_hz[0])) if inp.band_hz else 0.0
     r_tol = np.maximum(0.5 * _local_step(grid.ranges_m, refined.cell[:, 1]), 0.25 * resolution_m)
     a_tol = np.rad2deg(0.25 * beam_width_rad(inp) / np.maximum(np.cos(np.deg2rad(refined.angle_deg)), 0.1))
-    merged = merge_refined(refined, r_tol, a_tol)
+    # the most intense refinement of an echo stands for it: two searches from different cells of one echo can
+    # end apart along its flat far beam, and the echo's maximum is the more intense end
+    order = np.argsort(-refined.intensity, kind="stable")
+    merged = merge_refined(refined.take(order), r_tol[order], a_tol[order])
     return merged.take(np.argsort(-merged.cf_smooth, kind="stable"))
 
 
@@ -159,20 +162,23 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
     r1 = _best(evaluate, r0[:, None] + k * r_step[:, None], np.broadcast_to(a0[:, None], (len(a0), k.size)))[0]
     # the beam's lobe is flat along the arc: a -45 dB interpolation ripple would move its maximum
     evaluate.mode = mode if mode.name == "exact" else ARC_MODE
-    # 2. along the arc at that range
+    # 2. along the echo's equal-delay curve through that point (the grid's arc when the array sits at the centre)
+    along = EqualDelay(inp)
     half = np.maximum(np.rad2deg(ANGLE_SEARCH_BEAMS * beam_width_rad(inp) / np.maximum(np.cos(np.deg2rad(a0)), 0.1)),
                       2 * da)
     j = np.linspace(-1.0, 1.0, ANGLE_SEARCH_POINTS)
     a_step = half * (j[1] - j[0])
-    a1 = _best(evaluate, np.broadcast_to(r1[:, None], (len(r1), j.size)), a0[:, None] + j * half[:, None])[1]
-    # 3. a patch around it and a parabola on each axis
+    arc_a = a0[:, None] + j * half[:, None]
+    r1, a1 = _best(evaluate, along(r1[:, None], a0[:, None], arc_a), arc_a)
+    # 3. a patch around it, its range offsets along equal-delay curves, and a parabola on each axis
     p = np.arange(PATCH_POINTS) - PATCH_POINTS // 2
     pr, pa = PATCH_STEP * r_step, PATCH_STEP * a_step
-    rr = r1[:, None, None] + p[None, :, None] * pr[:, None, None]
+    rho = r1[:, None, None] + p[None, :, None] * pr[:, None, None]   # ranges at a1
     aa = a1[:, None, None] + p[None, None, :] * pa[:, None, None]
-    rr, aa = np.broadcast_arrays(rr, aa)
-    values = evaluate(rr, aa).intensity
-    r2, a2 = _parabolic_peak(values, rr, aa, pr, pa)
+    rho, aa = np.broadcast_arrays(rho, aa)
+    values = evaluate(along(rho, a1[:, None, None], aa), aa).intensity
+    rho2, a2 = _parabolic_peak(values, rho, aa, pr, pa)
+    r2 = along(rho2, a1, a2)
     # 4. the refined point and the smoothed CF's range taps
     taps = np.arange(HANN7.size) - HANN7.size // 2
     used = HANN7 > 0
@@ -180,6 +186,29 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
     centre = int(np.flatnonzero(taps[used] == 0)[0])
     return RefinedPeaks(range_m=r2, angle_deg=a2, cf_smooth=final.cf @ HANN7[used], cf=final.cf[:, centre],
                         intensity=final.intensity[:, centre], cell=peaks, n_cells=np.ones(len(peaks), dtype=np.int64))
+
+
+class EqualDelay:
+    """The range at which a point's echo delay is the same at another angle, to first order in the source's and
+    the array's offsets from the grid centre (straight rays).
+
+    The two-way path to a cell at range ``R`` and direction ``u = (sin theta, cos theta)`` is about
+    ``2 R - (o_s + o_a) . u`` (``o_s``, ``o_a`` the source and the array centre, across and down, from the
+    grid centre), so the echo of ``(r, theta)`` lies at ``r + (o_s + o_a) . (u' - u) / 2`` along ``theta'``.
+    Heave and roll move the array off the centre: under 0.45 m of heave the curve leaves the grid's arc by
+    8 mm a degree at 70 degrees, as much as the flat far beam changes over a degree.
+    """
+
+    def __init__(self, inp: BeamformInput):
+        src = np.asarray(inp.source_offset_m, dtype=np.float64)[1:]
+        arr = np.mean(np.asarray(inp.element_offsets_m, dtype=np.float64)[:, 1:], axis=0) if inp.n_channels else src
+        self.half_offset = 0.5 * (src + arr)
+
+    def __call__(self, range_m, from_deg, to_deg) -> np.ndarray:
+        """Ranges (m) at angles ``to_deg`` with the delay of ``range_m`` at ``from_deg`` (broadcast)."""
+        t0, t1 = np.deg2rad(from_deg), np.deg2rad(to_deg)
+        oy, oz = self.half_offset
+        return range_m + oy * (np.sin(t1) - np.sin(t0)) + oz * (np.cos(t1) - np.cos(t0))
 
 
 def lobe_maximum(cf_smooth: np.ndarray, intensity: np.ndarray, ia: np.ndarray, ir: np.ndarray,
