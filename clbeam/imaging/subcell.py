@@ -16,11 +16,16 @@ with its own travel-time table entry):
    1/4 step (half the envelope's width on the paper's grid: the nodes sample
    the envelope so coarsely that the most intense one can sit on a
    sidelobe 1.5 steps from the echo);
-2. along the arc at that range, +-half the array's beam width at the band
-   top (at least +-2 angle steps), 9 points;
-3. a 3 x 3 patch around the best point at half those steps, and a parabola
-   through the logarithms of the best point and its neighbours on each axis
-   (exact for a Gaussian peak);
+2. along the echo's equal-delay curve through that point, +-half the
+   array's beam width at the band top (at least +-2 angle steps), 9 points:
+   the grid's arc of constant range only when the source and the array sit
+   at the grid centre; heave and roll move them off it, and far from nadir,
+   where the beam is flat, a search along the arc then slides by tenths of a
+   degree (:class:`EqualDelay`);
+3. a 3 x 3 patch around the best point at half those steps (its range
+   offsets along equal-delay curves), and a parabola through the logarithms
+   of the best point and its neighbours on each axis (exact for a Gaussian
+   peak);
 4. at the refined point and +-1, +-2 range steps: intensity, CF, and the
    7-point Hann-smoothed CF of the grid's range step there.
 
