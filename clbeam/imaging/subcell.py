@@ -176,14 +176,7 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
     arc_a = a0[:, None] + j * half[:, None]
     r1, a1 = _best(evaluate, along(r1[:, None], a0[:, None], arc_a), arc_a)
     # 3. a patch around it, its range offsets along equal-delay curves, and a parabola on each axis
-    p = np.arange(PATCH_POINTS) - PATCH_POINTS // 2
-    pr, pa = PATCH_STEP * r_step, PATCH_STEP * a_step
-    rho = r1[:, None, None] + p[None, :, None] * pr[:, None, None]   # ranges at a1
-    aa = a1[:, None, None] + p[None, None, :] * pa[:, None, None]
-    rho, aa = np.broadcast_arrays(rho, aa)
-    values = evaluate(along(rho, a1[:, None, None], aa), aa).intensity
-    rho2, a2 = _parabolic_peak(values, rho, aa, pr, pa)
-    r2 = along(rho2, a1, a2)
+    r2, a2 = _patch_peak(evaluate, along, r1, a1, PATCH_STEP * r_step, PATCH_STEP * a_step)
     # 4. the refined point and the smoothed CF's range taps
     taps = np.arange(HANN7.size) - HANN7.size // 2
     used = HANN7 > 0
@@ -267,6 +260,18 @@ def _best(evaluate, ranges_m: np.ndarray, angles_deg: np.ndarray):
     k = np.argmax(evaluate(ranges_m, angles_deg).intensity, axis=1)
     rows = np.arange(len(k))
     return ranges_m[rows, k], angles_deg[rows, k]
+
+
+def _patch_peak(evaluate, along, r1, a1, step_r, step_a):
+    """Range and angle of each point's maximum on a patch about ``(r1, a1)`` (its range offsets along the
+    equal-delay curves ``along``), moved by a parabola on each axis."""
+    p = np.arange(PATCH_POINTS) - PATCH_POINTS // 2
+    rho = r1[:, None, None] + p[None, :, None] * step_r[:, None, None]   # ranges at a1
+    aa = a1[:, None, None] + p[None, None, :] * step_a[:, None, None]
+    rho, aa = np.broadcast_arrays(rho, aa)
+    values = evaluate(along(rho, a1[:, None, None], aa), aa).intensity
+    rho2, a2 = _parabolic_peak(values, rho, aa, step_r, step_a)
+    return along(rho2, a1, a2), a2
 
 
 def _parabolic_peak(values, rr, aa, step_r, step_a):
