@@ -231,8 +231,8 @@ def lobe_maximum(cf_smooth: np.ndarray, intensity: np.ndarray, ia: np.ndarray, i
 def merge_refined(refined: RefinedPeaks, range_tol_m: np.ndarray | float,
                   angle_tol_deg: np.ndarray | float) -> RefinedPeaks:
     """One entry per echo: refined peaks closer than the tolerances (m, degree) to an
-    earlier one (the grid peaks come by decreasing CF) are merged into it; ``n_cells``
-    counts the grid peaks each kept entry stands for."""
+    earlier one in the given order (:func:`subcell_peaks` gives them by decreasing refined
+    intensity) are merged into it; ``n_cells`` counts the grid peaks each kept entry stands for."""
     n = refined.range_m.size
     r_tol = np.broadcast_to(range_tol_m, (n,))
     a_tol = np.broadcast_to(angle_tol_deg, (n,))
