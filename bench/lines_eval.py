@@ -91,6 +91,7 @@ def false_rate(runs: list, thresholds=(-6, -4, -2, 0, 2, 4, 6)) -> list:
 
 def time_thousand_pings(density_per_m: float = 0.05, n_pings: int = 1000) -> str:
     """Line building of a synthetic 1,000-ping survey: seconds and peak memory of the search."""
+    from clbeam.survey.line_products import line_ranker
     from clbeam.survey.lines import TrackFrame, find_tracks
 
     rng = np.random.default_rng(0)
@@ -106,7 +107,7 @@ def time_thousand_pings(density_per_m: float = 0.05, n_pings: int = 1000) -> str
                        b_post=b, pings=np.arange(n_pings), ping_s=s)
     tracemalloc.start()
     t0 = time.perf_counter()
-    tracks = find_tracks(frame, LineOptions())
+    tracks = find_tracks(frame, LineOptions(), rank=line_ranker(frame, LineOptions()))
     dt = time.perf_counter() - t0
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()

@@ -156,10 +156,10 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
         log.warning("no along-track distance (navigation, or ping times and --speed): lines searched with pings "
                     "%.1f m apart; their lengths and headings are not reported", options.nominal_spacing_m)
     frame = _frame(det, order, sb, centre_yz, pings, s_ping)
-    tracks = find_tracks(frame, options)
-    size = _search_size(frame)
+    rank = line_ranker(frame, options)
+    tracks = find_tracks(frame, options, rank=rank)
     level = None if det.intensity_db is None else np.asarray(det.intensity_db, dtype=np.float64)[order]
-    described = [(tr, *_describe(frame, tr, options, size, (sb, centre_yz, level), nav, scaled)) for tr in tracks]
+    described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level), nav, scaled)) for tr in tracks]
     kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], options)
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
@@ -222,16 +222,17 @@ def _search_size(frame: TrackFrame) -> SearchSize:
     return SearchSize(spacing_m=max(spacing, 1e-3), swath_m=y_hi - y_lo, burial_span_m=span(b), y_range_m=(y_lo, y_hi))
 
 
-def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSize, pings_info: tuple,
-              nav: SurveyNavigation, scaled: bool) -> tuple:
+def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_info: tuple, nav: SurveyNavigation,
+              scaled: bool) -> tuple:
     """One line's row, ``(pings, y)``, path in the association frame, and ``[longitude, latitude]`` path (``None``
-    without navigation); ``pings_info``: the pings' seabeds and grid centres, the detections' levels (or ``None``)."""
+    without navigation); ``rank``: :func:`line_ranker`'s scorer; ``pings_info``: the pings' seabeds and grid
+    centres, the detections' levels (or ``None``)."""
     sb, centre_yz, level = pings_info
     m = tr.members
     path_y = smooth_path(frame, tr, options.fit_length_m / 2)
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
-    score = _score(frame, tr, path_y, burial, options, size)
+    score = rank(tr)
     spec = _specular(frame, tr, path_y, sb, centre_yz, level, options)
     if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
         path_y, burial, burial_se = spec["path_y"], spec["burial_m"], spec["burial_error_m"]
@@ -249,6 +250,23 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, size: SearchSi
     return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
 
+def line_ranker(frame: TrackFrame, options: LineOptions):
+    """``rank(track) -> score``: a track's score (:func:`_score` on its smoothed path and burial, against the
+    search's extent in ``frame``), remembered by its detections; what :func:`~clbeam.survey.lines.find_tracks`
+    chooses tracks by."""
+    size = _search_size(frame)
+    memo = {}
+
+    def rank(tr: Track) -> float:
+        key = tr.members.tobytes()
+        if key not in memo:
+            path_y = smooth_path(frame, tr, options.fit_length_m / 2)
+            burial = line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0]
+            memo[key] = _score(frame, tr, path_y, burial, options, size)
+        return memo[key]
+    return rank
+
+
 def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, options: LineOptions,
            size: SearchSize) -> float:
     """The line's score (:func:`clbeam.survey.line_score.line_score`) in the frame its detections were found in:
@@ -260,8 +278,11 @@ def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, opti
     at = np.searchsorted(ext, frame.ping[m])
     # hits and clutter pass the same tests: within the gate across, and the track's own burial gate
     on = (np.abs(frame.y[m] - path_y[at]) <= gate_y) & burial_ok(frame.b[m], frame.b_sigma[m], burial, options)
-    hits = [np.unique(frame.ping[m][on & (frame.cf[m] >= level)]).size for level in CF_LEVELS]
-    others = np.setdiff1d(np.arange(int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])), m)
+    hits = [int(np.count_nonzero(on & (frame.cf[m] >= level))) for level in CF_LEVELS]  # one member a ping
+    lo, hi = int(frame.starts[tr.first]), int(frame.starts[tr.last + 1])
+    mine = np.zeros(hi - lo, dtype=bool)
+    mine[m - lo] = True
+    others = lo + np.flatnonzero(~mine)
     others = others[burial_ok(frame.b[others], frame.b_sigma[others], burial, options)]
     at_others = np.searchsorted(ext, frame.ping[others])
     p_hit = clutter_hit_rate(frame.y[others] - path_y[at_others], at_others, path_y, copy_offsets(gate_y), gate_y,

@@ -207,14 +207,16 @@ def _copy_counts(dy, ping_index, path_y, offsets_m, across_gate_m, y_range_m, st
 def _pooled_rate(counts: np.ndarray, trials: np.ndarray, outlier_p: float) -> float:
     """Pooled hit rate of one side's copies with pings, the outlying ones (upper tail below ``outlier_p``)
     left out; at least one over their pings (NaN: no copy with pings)."""
-    from scipy.stats import binom
+    from scipy.special import bdtrc
 
     use = trials > 0
     if not use.any():
         return math.nan
+    k_least, n_int = np.asarray(counts, dtype=np.int64) - 1, np.asarray(trials, dtype=np.int64)
     for _ in range(len(counts)):
         rate = counts[use].sum() / trials[use].sum()
-        keep = use & (binom.sf(counts - 1, trials, rate) >= outlier_p)
+        # P(X >= count), X ~ Binomial(trials, rate): the binomial upper tail (scipy.stats.binom.sf, as a ufunc)
+        keep = use & (np.where(k_least < 0, 1.0, bdtrc(k_least, n_int, rate)) >= outlier_p)
         if keep.sum() == use.sum() or not keep.any():
             break
         use = keep

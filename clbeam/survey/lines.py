@@ -25,7 +25,12 @@ to the world ping by ping.
    line: ``1 / cos`` of its heading wider in ``y``, at most twice) and
    ``burial_gate_m`` joins, and the track bridges up to ``max_gap_pings``
    imaged pings in a row without one.  The local fit follows curved lines (30°/km
-   bends 0.3 m from a straight line over 100 m).  Detections are used once.
+   bends 0.3 m from a straight line over 100 m).  Each seed that the
+   candidates so far do not mostly hold grows a candidate; the best by
+   score is kept, and one that shared its detections grows again without
+   them.  Detections are used once.  (Kept seed by seed, in seeding order,
+   a seed that strays off a crossing pipeline in dense clutter took the
+   detections of the seed that follows it: the boulder field's pipeline.)
 3. **Scores** (:mod:`clbeam.survey.line_score`): how unlikely the line is as
    a chance alignment of the clutter measured around it; and a **kind**
    from its burial and position (:func:`line_kind`).
@@ -33,6 +38,7 @@ to the world ping by ping.
 
 from __future__ import annotations
 
+import heapq
 import math
 from dataclasses import dataclass, field
 
@@ -42,6 +48,9 @@ from clbeam.survey.line_options import LineOptions
 
 #: Hough cells kept per window and grid, the most pings first
 MAX_SEEDS_PER_GRID = 200
+#: a seed of which candidates already hold more than this share grows no candidate of its own (they cost a
+#: follow each; at one half the boulder field's pipeline seeds were all skipped)
+SKIP_CLAIMED = 0.7
 
 
 @dataclass
@@ -120,31 +129,63 @@ class Track:
     last: int
 
 
-def find_tracks(frame: TrackFrame, options: LineOptions) -> list[Track]:
+def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Track]:
     """Lines of detections (steps 1 and 2 of the module): every track of at least ``options.min_hits`` pings.
+
+    Each seed not mostly covered by an earlier one's track grows a candidate
+    track, the detections shared between candidates; the best candidate by
+    ``rank`` is kept and takes its detections, and a candidate that shared
+    some grows again from its seed without them (a lazy greedy choice: in
+    dense clutter a seed that strays off a line must not take the line's
+    detections from the seed that follows it).
 
     Parameters
     ----------
     frame : TrackFrame
     options : LineOptions
+    rank : callable, optional
+        ``rank(track) -> float``, higher first (the line's score,
+        :func:`clbeam.survey.line_products.survey_lines`); by default its
+        number of pings.
 
     Returns
     -------
     list of Track
         In order of their first ping.
     """
+    rank = rank or (lambda tr: float(tr.members.size))
+    free = np.zeros(frame.ping.size, dtype=bool)
+    claimed = np.zeros(frame.ping.size, dtype=bool)
+    heap = []
+    for i, seed in enumerate(hough_seeds(frame, options)):
+        if claimed[seed].mean() > SKIP_CLAIMED:
+            continue
+        track = _grow(frame, seed, free, options)
+        if track is not None:
+            claimed[track.members] = True
+            heapq.heappush(heap, (-rank(track), i, seed, track))
     used = np.zeros(frame.ping.size, dtype=bool)
     tracks = []
-    for seed in hough_seeds(frame, options):
-        if used[seed].sum() > seed.size // 2:
+    while heap:
+        _, i, seed, track = heapq.heappop(heap)
+        if not used[track.members].any():
+            used[track.members] = True
+            tracks.append(track)
             continue
-        members = _prune(frame, _follow(frame, seed[~used[seed]], used, options), options)
-        if members.size >= options.min_hits:
-            used[members] = True
-            k = np.searchsorted(frame.pings, frame.ping[members])
-            tracks.append(Track(members=members, first=int(k[0]), last=int(k[-1])))
+        track = _grow(frame, seed, used, options) if used[seed].sum() <= seed.size // 2 else None
+        if track is not None:
+            heapq.heappush(heap, (-rank(track), i, seed, track))
     tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
     return tracks
+
+
+def _grow(frame: TrackFrame, seed: np.ndarray, used: np.ndarray, options: LineOptions) -> Track | None:
+    """The track a seed grows into among the detections not ``used`` (``None``: under ``min_hits`` pings)."""
+    members = _prune(frame, _follow(frame, seed[~used[seed]], used, options), options)
+    if members.size < options.min_hits:
+        return None
+    k = np.searchsorted(frame.pings, frame.ping[members])
+    return Track(members=members, first=int(k[0]), last=int(k[-1]))
 
 
 def hough_seeds(frame: TrackFrame, options: LineOptions) -> list[np.ndarray]:
@@ -283,7 +324,7 @@ def _extend(frame: TrackFrame, hits: dict, used: np.ndarray, options: LineOption
         if ok.any():
             # of several (a steep line's echo smears across the gate) the one nearest their CF-weighted centre
             inside = cand[ok]
-            centre = float(np.average(frame.y[inside], weights=frame.cf[inside]))
+            centre = float(np.dot(frame.y[inside], frame.cf[inside]) / frame.cf[inside].sum())
             hits[k] = int(inside[np.argmin(np.abs(frame.y[inside] - centre))])
             recent = [hits[k]] + recent[:options.fit_hits - 1]
             fit = _local_fit(frame, np.asarray(recent), options)
@@ -326,11 +367,13 @@ def _local_fit(frame: TrackFrame, recent: np.ndarray, options: LineOptions) -> t
     b_hat = burial_estimate(frame.b[recent], frame.b_sigma[recent])
     if s.size < 3:
         return float(y[0]), 0.0, b_hat
-    sm, ym = s.mean(), y.mean()
-    var = float(((s - sm) ** 2).sum())
+    # sums, not means: this runs once a hit, on a few points
+    sm, ym = s.sum() / s.size, y.sum() / y.size
+    ds = s - sm
+    var = float(np.dot(ds, ds))
     if var <= 0:
         return float(ym), 0.0, b_hat
-    slope = float(((s - sm) * (y - ym)).sum()) / var
+    slope = float(np.dot(ds, y - ym)) / var
     return float(ym - slope * sm), slope, b_hat
 
 
@@ -345,8 +388,8 @@ def burial_estimate(b: np.ndarray, sigma: np.ndarray) -> float:
     if not ok.any():
         return math.nan
     b, sigma = b[ok], sigma[ok]
-    best = sigma <= 2 * max(float(np.min(sigma)), 0.1)
-    return float(np.median(b[best]))
+    v = np.sort(b[sigma <= 2 * max(float(sigma.min()), 0.1)])
+    return 0.5 * float(v[(v.size - 1) // 2] + v[v.size // 2])  # the median
 
 
 def line_burial(b: np.ndarray, sigma: np.ndarray, floor_m: float = 0.3) -> tuple[float, float, float]:

@@ -278,3 +278,31 @@ def test_a_crossing_line_smeared_over_the_beam_is_one_track_along_its_centre():
     half = 0.5 * math.radians(4.5) * np.hypot(truth, 225.0) * math.tan(a)
     assert np.sqrt(np.mean((smooth_path(frame, t, 60.0) - truth) ** 2)) < 0.5 * half.mean()
     assert t.last - t.first + 1 >= 0.9 * n
+
+
+@pytest.mark.parametrize("preferred", [0, 1])
+def test_the_better_ranked_of_two_branches_takes_the_stem_they_share(preferred):
+    """Line 1 branches off line 0 at 3 degrees halfway (a Y: before ping 30
+    the detections are line 0's alone, and a track can follow either branch
+    through them).  Whichever ``rank`` prefers holds the stem and its own
+    branch, over every ping and with 90 % of its branch's detections; the
+    other keeps only its branch (the second half)."""
+    n, half = 60, 30
+    stem = {"y0": -250.0, "heading": 5.0, "p": 0.95}
+    y_fork = -250.0 + half * SPACING * math.tan(math.radians(5.0))
+    branch = {"y0": y_fork - half * SPACING * math.tan(math.radians(8.0)), "heading": 8.0, "p": 0.95, "gap": (0, half - 1)}
+    frame, owner = synthetic_frame(n, [stem, branch], 0.05, seed=11)
+    heading = (5.0, 8.0)[preferred]
+
+    def rank(track):  # prefers tracks whose second half runs at the preferred branch's heading
+        m = track.members[track.members.size // 2:]
+        slope = np.polyfit(frame.s[m], frame.y[m], 1)[0]
+        return track.members.size - 100 * abs(math.degrees(math.atan(slope)) - heading)
+    tracks = [t for t in find_tracks(frame, LineOptions(), rank=rank) if t.members.size >= 10]
+    second = [np.mean(owner[t.members[frame.ping[t.members] >= half]] == preferred) for t in tracks]
+    won = [t for t, share in zip(tracks, second) if share >= 0.9 and t.first == 0]
+    lost = [t for t, share in zip(tracks, second) if share <= 0.1]
+    assert len(won) == 1 and len(lost) == 1 and len(tracks) == 2
+    assert won[0].last - won[0].first + 1 >= 0.95 * n
+    assert np.sum(owner[won[0].members] == preferred) >= 0.9 * np.sum(owner == preferred)
+    assert frame.ping[lost[0].members].min() >= half - 2
