@@ -21,7 +21,12 @@ with its own travel-time table entry):
    the grid's arc of constant range only when the source and the array sit
    at the grid centre; heave and roll move them off it, and far from nadir,
    where the beam is flat, a search along the arc then slides by tenths of a
-   degree (:class:`EqualDelay`);
+   degree (:class:`EqualDelay`).  Where the best point is the window's edge
+   the intensity still rises there (the cell sat on the shoulder of the
+   echo's main lobe, as a long pipe's far echo leaves CF peaks a beam width
+   from its maximum): the window moves to it, up to four windows, so that
+   the peak reaches the maximum and merges with the echo's other cells
+   instead of standing as a second echo beside it;
 3. a 3 x 3 patch around the best point at half those steps (its range
    offsets along equal-delay curves), and a parabola through the logarithms
    of the best point and its neighbours on each axis (exact for a Gaussian
@@ -56,6 +61,8 @@ RANGE_SEARCH_STEP = 1.0 / 4.0
 #: angle searched either side of the cell, in beam widths at the band top (at least 2 angle steps)
 ANGLE_SEARCH_BEAMS = 0.5
 ANGLE_SEARCH_POINTS = 9
+#: windows searched along the curve at most, each moved to the last's edge while the intensity still rises there
+ARC_SEARCH_ROUNDS = 4
 #: interpolation of the search along range, and of the rest (unless the ping is imaged with "exact")
 SEARCH_MODE = interp_mode("cubic")
 ARC_MODE = interp_mode("lanczos8")
@@ -171,10 +178,8 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
     along = EqualDelay(inp)
     half = np.maximum(np.rad2deg(ANGLE_SEARCH_BEAMS * beam_width_rad(inp) / np.maximum(np.cos(np.deg2rad(a0)), 0.1)),
                       2 * da)
-    j = np.linspace(-1.0, 1.0, ANGLE_SEARCH_POINTS)
-    a_step = half * (j[1] - j[0])
-    arc_a = a0[:, None] + j * half[:, None]
-    r1, a1 = _best(evaluate, along(r1[:, None], a0[:, None], arc_a), arc_a)
+    a_step = half * 2.0 / (ANGLE_SEARCH_POINTS - 1)
+    r1, a1 = _arc_search(evaluate, along, r1, a0, half, (grid.angles_deg.min(), grid.angles_deg.max()))
     # 3. a patch around it, its range offsets along equal-delay curves, and a parabola on each axis
     r2, a2 = _patch_peak(evaluate, along, r1, a1, PATCH_STEP * r_step, PATCH_STEP * a_step)
     # 4. the refined point and the smoothed CF's range taps
@@ -260,6 +265,29 @@ def _best(evaluate, ranges_m: np.ndarray, angles_deg: np.ndarray):
     k = np.argmax(evaluate(ranges_m, angles_deg).intensity, axis=1)
     rows = np.arange(len(k))
     return ranges_m[rows, k], angles_deg[rows, k]
+
+
+def _arc_search(evaluate, along, r1, a0, half, bounds):
+    """Range and angle of the most intense of ``ANGLE_SEARCH_POINTS`` points within ``+-half`` (degree) of each
+    ``a0`` along the equal-delay curves ``along`` through ``(r1, a0)``; where that point is on the window's edge
+    the window moves to it and searches again (up to ``ARC_SEARCH_ROUNDS`` windows), within the grid's angle
+    ``bounds``."""
+    j = np.linspace(-1.0, 1.0, ANGLE_SEARCH_POINTS)
+    r, a = np.array(r1, dtype=np.float64), np.array(a0, dtype=np.float64)
+    todo = np.arange(r.size)
+    for _ in range(ARC_SEARCH_ROUNDS):
+        arc_a = np.clip(a[todo, None] + j * half[todo, None], *bounds)
+        arc_r = along(r[todo, None], a[todo, None], arc_a)
+        k = np.argmax(evaluate(arc_r, arc_a).intensity, axis=1)
+        rows = np.arange(todo.size)
+        r[todo], a[todo] = arc_r[rows, k], arc_a[rows, k]
+        # the intensity still rises at the edge: the cell sat on the shoulder of a stronger echo along the curve
+        # (its maximum, or another lobe's), which the window must reach for the two to merge as one echo
+        on_edge = ((k == 0) | (k == j.size - 1)) & (arc_a[rows, k] > bounds[0]) & (arc_a[rows, k] < bounds[1])
+        todo = todo[on_edge]
+        if todo.size == 0:
+            break
+    return r, a
 
 
 def _patch_peak(evaluate, along, r1, a1, step_r, step_a):

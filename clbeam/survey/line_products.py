@@ -160,7 +160,7 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     tracks = find_tracks(frame, options, rank=rank)
     level = None if det.intensity_db is None else np.asarray(det.intensity_db, dtype=np.float64)[order]
     described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level), nav, scaled)) for tr in tracks]
-    kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], options)
+    kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options)
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
         row["line"] = len(rows)
@@ -172,10 +172,12 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths)
 
 
-def _without_duplicates(described: list, options: LineOptions) -> list:
+def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions) -> list:
     """The lines less those that shadow a better one: over at least half their pings within two gates of it
-    across the track and within 3 m in burial (a pulse's tail or a sidelobe of the same pipe), in line order."""
+    across the track (the wider line's, :func:`track_gate`: a crossing line's smear holds more than one track)
+    and within 3 m in burial (a pulse's tail or a sidelobe of the same pipe), in line order."""
     order = sorted(range(len(described)), key=lambda i: -described[i][1]["score"])
+    gates = [track_gate(frame, d[0], d[2][1], options) for d in described]
     kept = []
     for i in order:
         _, row, (pings, y), *_ = described[i]
@@ -183,7 +185,7 @@ def _without_duplicates(described: list, options: LineOptions) -> list:
         for j in kept:
             _, other, (p2, y2), *_ = described[j]
             common, a, b = np.intersect1d(pings, p2, return_indices=True)
-            near = np.abs(y[a] - y2[b]) <= 2 * options.across_gate_m
+            near = np.abs(y[a] - y2[b]) <= 2 * max(gates[i], gates[j])
             same_depth = not (abs(row["burial_m"] - other["burial_m"]) > 3.0)
             if near.sum() >= 0.5 * pings.size and same_depth:
                 dup = True
@@ -333,25 +335,32 @@ def _fades(frame: TrackFrame, members: np.ndarray, sin_a: np.ndarray, centre_y: 
                 and beta >= fading_floor_db(options.beam_width_deg) and fading["span_db"] >= 3.0)
 
 
-def effective_gates(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> tuple[float, float]:
-    """The half-widths (m) across and in burial that a chance line must match, for the score.
-
-    The gates the track's detections were taken with, on average (they
-    widen with the line's heading, each peak's slide along its arc and a
-    crossing line's smear: :mod:`clbeam.survey.lines`), narrowed to 2.5
-    times the RMS distance of the detections from the line's path where
-    they lie closer than that (a line tighter than its gate is less likely
-    by chance), never below ``across_gate_m``.
-    """
+def track_gate(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> float:
+    """The mean half-width (m) of the gate across that the track's detections were taken with
+    (:func:`~clbeam.survey.lines.across_gate` at its path's slope: wider with its heading, its peaks' slide
+    along their arcs and a crossing line's smear)."""
     m = tr.members
     s_ext = frame.ping_s[tr.first:tr.last + 1]
     slope = np.gradient(path_y, s_ext) if path_y.size > 1 and np.ptp(s_ext) > 0 else np.zeros(path_y.size)
     k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
-    gy = float(np.mean(across_gate(frame, m, slope[k], options)))
+    return float(np.mean(across_gate(frame, m, slope[k], options)))
+
+
+def effective_gates(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> tuple[float, float]:
+    """The half-widths (m) across and in burial that a chance line must match, for the score.
+
+    The gates the track's detections were taken with, on average
+    (:func:`track_gate`), narrowed to 2.5 times the RMS distance of the
+    detections from the line's path where they lie closer than that (a line
+    tighter than its gate is less likely by chance), never below
+    ``across_gate_m``.
+    """
+    m = tr.members
+    k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
     fit = 2.5 * float(np.sqrt(np.mean((frame.y[m] - path_y[k]) ** 2)))
     sig = frame.b_sigma[m]
     gb = np.maximum(options.burial_gate_m, 2 * np.where(np.isfinite(sig), sig, 0.0))
-    return min(gy, max(options.across_gate_m, fit)), float(np.mean(gb))
+    return min(track_gate(frame, tr, path_y, options), max(options.across_gate_m, fit)), float(np.mean(gb))
 
 
 def _world_path(row: dict, pings: np.ndarray, y: np.ndarray, s: np.ndarray, nav: SurveyNavigation,

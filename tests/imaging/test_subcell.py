@@ -193,3 +193,24 @@ def test_equal_delay_curve_keeps_the_two_way_path():
     exact = [path(600.0, 70.0) - path(r, a) for r, a in zip(r1, (66.0, 70.0, 74.0))]
     assert np.max(np.abs(exact)) < 1e-3                       # the grid's arc would be off by 6 cm
     assert abs(path(600.0, 70.0) - path(600.0, 74.0)) > 0.05
+
+
+@pytest.mark.parametrize("beams", [-0.7, 0.7, 1.2])
+def test_a_cell_on_the_shoulder_of_an_echo_climbs_to_its_maximum(beams):
+    """A peak cell 0.7-1.2 beam widths along the arc from a point's echo (a CF peak on the main lobe's
+    shoulder, as a long pipe's far echo gives): every point of the first window (+-half a beam) is less
+    intense toward the cell, so the refinement moves its window on until the intensity falls again, and
+    ends on the echo's maximum (within a cell), not at the first window's edge (0.5-1.5 degrees off) where
+    it would stand as a second echo beside it."""
+    from clbeam.imaging.subcell import beam_width_rad
+
+    r, a = 120.3, 45.04
+    ping = point_ping([polar_point(r, a)], record_s=0.2)
+    grid = grid_for([r], [a])
+    im = Imager(grid, ImagingOptions())
+    inp = im.beamform_input(ping)
+    start = a + np.degrees(beams * beam_width_rad(inp) / np.cos(np.radians(a)))
+    cell = np.array([[int(np.argmin(np.abs(grid.angles_deg - start))), int(np.argmin(np.abs(grid.ranges_m - r)))]])
+    out = refine_peaks(im.engine, inp, grid, cell, interp_mode("cubic"))
+    assert abs(out.range_m[0] - r) < 0.1 * RANGE_STEP
+    assert abs(out.angle_deg[0] - a) < ANGLE_STEP, (start, out.angle_deg[0])
