@@ -270,13 +270,15 @@ def _best(evaluate, ranges_m: np.ndarray, angles_deg: np.ndarray):
 def _arc_search(evaluate, along, r1, a0, half, bounds):
     """Range and angle of the most intense of ``ANGLE_SEARCH_POINTS`` points within ``+-half`` (degree) of each
     ``a0`` along the equal-delay curves ``along`` through ``(r1, a0)``; where that point is on the window's edge
-    the window moves to it and searches again (up to ``ARC_SEARCH_ROUNDS`` windows), within the grid's angle
-    ``bounds``."""
+    and inside the grid's angle ``bounds`` the window moves to it and searches again, within the bounds (up to
+    ``ARC_SEARCH_ROUNDS`` windows)."""
     j = np.linspace(-1.0, 1.0, ANGLE_SEARCH_POINTS)
     r, a = np.array(r1, dtype=np.float64), np.array(a0, dtype=np.float64)
     todo = np.arange(r.size)
-    for _ in range(ARC_SEARCH_ROUNDS):
-        arc_a = np.clip(a[todo, None] + j * half[todo, None], *bounds)
+    for round_ in range(ARC_SEARCH_ROUNDS):
+        arc_a = a[todo, None] + j * half[todo, None]
+        if round_:  # a moved window stays inside the grid; the first may reach past its edge, to an echo beyond it
+            arc_a = np.clip(arc_a, *bounds)
         arc_r = along(r[todo, None], a[todo, None], arc_a)
         k = np.argmax(evaluate(arc_r, arc_a).intensity, axis=1)
         rows = np.arange(todo.size)

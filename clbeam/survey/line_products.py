@@ -174,10 +174,11 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
 
 def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions) -> list:
     """The lines less those that shadow a better one: over at least half their pings within two gates of it
-    across the track (the wider line's, :func:`track_gate`: a crossing line's smear holds more than one track)
-    and within 3 m in burial (a pulse's tail or a sidelobe of the same pipe), in line order."""
+    across the track (the wider line's, as narrowed for the score, :func:`effective_gates`: a crossing line's
+    smear holds more than one track, while tight lines side by side at a heading are two) and within 3 m in
+    burial (a pulse's tail or a sidelobe of the same pipe), in line order."""
     order = sorted(range(len(described)), key=lambda i: -described[i][1]["score"])
-    gates = [track_gate(frame, d[0], d[2][1], options) for d in described]
+    gates = [effective_gates(frame, d[0], d[2][1], options)[0] for d in described]
     kept = []
     for i in order:
         _, row, (pings, y), *_ = described[i]

@@ -214,3 +214,14 @@ def test_a_cell_on_the_shoulder_of_an_echo_climbs_to_its_maximum(beams):
     out = refine_peaks(im.engine, inp, grid, cell, interp_mode("cubic"))
     assert abs(out.range_m[0] - r) < 0.1 * RANGE_STEP
     assert abs(out.angle_deg[0] - a) < ANGLE_STEP, (start, out.angle_deg[0])
+
+
+def test_an_echo_just_past_the_grid_edge_refines_to_itself_not_the_edge():
+    """A point 0.5 degree beyond the grid's last angle: its edge cell's first search window reaches past the
+    edge, and the peak refines onto the point (within a tenth of a cell), not onto the edge."""
+    r, a = 100.3, 45.5
+    ping = point_ping([polar_point(r, a)], record_s=0.16)
+    grid = PolarGrid(np.arange(95.0, 106.0, RANGE_STEP), np.arange(40.0, 45.0 + 1e-9, ANGLE_STEP))
+    rows = Imager(grid, ImagingOptions()).image(ping).peaks
+    row, dr, da = refined_near(rows, r, a)
+    assert dr < 0.1 and da < 0.1, row

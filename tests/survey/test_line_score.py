@@ -205,3 +205,31 @@ def test_a_crossing_pipe_smeared_over_the_beam_is_one_pipeline_line(seed):
     truth = 300.0 + pings * 8.2 * math.tan(math.radians(40.0))
     half = 0.5 * math.radians(4.5) * np.hypot(truth, 230.0) * math.tan(math.radians(40.0))
     assert np.sqrt(np.mean((path - truth) ** 2)) < 0.5 * half.mean() and pings.size >= 0.8 * n
+
+
+def test_two_tight_pipes_side_by_side_at_a_heading_stay_two_lines():
+    """Two pipes 30 m apart, both at 40 degrees to the track, their detections within 0.2 m: two pipeline
+    lines (a line shadows another within two of its gates as narrowed to its detections' spread, not the
+    smear a crossing line could have there, 30-60 m across at these ranges)."""
+    rng = np.random.default_rng(4)
+    n, depth, a = 60, 230.0, math.radians(40.0)
+    ping, y, z, cf = [], [], [], []
+    for k in range(n):
+        for y0 in (300.0, 330.0):
+            ping.append(k)
+            y.append(y0 + k * 8.2 * math.tan(a) + rng.normal(0, 0.2))
+            z.append(depth + 1.0 + rng.normal(0, 0.1))
+            cf.append(rng.uniform(0.6, 0.8))
+        n_c = rng.poisson(0.01 * 800)
+        ping += [k] * n_c
+        y += list(rng.uniform(-800, 800, n_c))
+        z += list(depth + rng.uniform(-2, 25, n_c))
+        cf += list(rng.uniform(0.4, 0.6, n_c))
+    det = LineDetections(ping=np.asarray(ping), y=np.asarray(y), z=np.asarray(z), cf=np.asarray(cf))
+    nav = SurveyNavigation(n, None)
+    imaged = np.ones(n, dtype=bool)
+    nav.finish(imaged)
+    lines = survey_lines(det, np.tile([depth, 0.0], (n, 1)), np.zeros((n, 2)), imaged, nav, LineOptions())
+    pipes = sorted(r["mean_y_m"] - np.mean(np.arange(n) * 8.2 * math.tan(a)) for r in lines.rows
+                   if r["kind"] == "pipeline")
+    assert len(pipes) == 2 and abs(pipes[0] - 300.0) < 1.0 and abs(pipes[1] - 330.0) < 1.0
