@@ -119,6 +119,16 @@ def test_hit_rate_at_each_cf_level_is_the_closed_form_and_strong_echoes_score_by
     assert by_level[0] < 4 < score and int(np.argmax(by_level)) == 4
 
 
+def lines_without_navigation(det, seabed):
+    """:func:`survey_lines` of detections over every ping of a survey without navigation, the grid centres at
+    the surface; ``seabed``: ``(n_pings, 2)``."""
+    n = seabed.shape[0]
+    nav = SurveyNavigation(n, None)
+    imaged = np.ones(n, dtype=bool)
+    nav.finish(imaged)
+    return survey_lines(det, seabed, np.zeros((n, 2)), imaged, nav, LineOptions())
+
+
 def far_angle_survey(rng, n_pings: int = 120, spacing_m: float = 8.2):
     """Seabed scatterers 250-450 m out on both sides, each seen for the pings whose 4.5 degree transmit beam
     holds it (about three), its peak slid along its arc by 0.3 deg / cos(theta) as the imager's are, and a pipe
@@ -157,10 +167,7 @@ def test_persistent_far_angle_seabed_scatterers_make_no_pipeline_line_and_the_pi
     rng = np.random.default_rng(7)
     det, seabed = far_angle_survey(rng)
     n = seabed.shape[0]
-    nav = SurveyNavigation(n, None)
-    imaged = np.ones(n, dtype=bool)
-    nav.finish(imaged)
-    lines = survey_lines(det, seabed, np.zeros((n, 2)), imaged, nav, LineOptions())
+    lines = lines_without_navigation(det, seabed)
     pipes = [r for r in lines.rows if r["kind"] == "pipeline"]
     # the score is what is tested here (the positions against the truth are the evaluation's): the pipe's line
     # is the only pipeline line, near the pipe, over most of its pings
@@ -195,10 +202,7 @@ def test_a_crossing_pipe_smeared_over_the_beam_is_one_pipeline_line(seed):
     rng = np.random.default_rng(seed)
     det, seabed = smeared_survey(rng)
     n = seabed.shape[0]
-    nav = SurveyNavigation(n, None)
-    imaged = np.ones(n, dtype=bool)
-    nav.finish(imaged)
-    lines = survey_lines(det, seabed, np.zeros((n, 2)), imaged, nav, LineOptions())
+    lines = lines_without_navigation(det, seabed)
     pipes = [(r, lines.ping_paths[k]) for k, r in enumerate(lines.rows) if r["kind"] == "pipeline"]
     assert len(pipes) == 1
     pings, path = pipes[0][1]
@@ -226,10 +230,7 @@ def test_two_tight_pipes_side_by_side_at_a_heading_stay_two_lines():
         z += list(depth + rng.uniform(-2, 25, n_c))
         cf += list(rng.uniform(0.4, 0.6, n_c))
     det = LineDetections(ping=np.asarray(ping), y=np.asarray(y), z=np.asarray(z), cf=np.asarray(cf))
-    nav = SurveyNavigation(n, None)
-    imaged = np.ones(n, dtype=bool)
-    nav.finish(imaged)
-    lines = survey_lines(det, np.tile([depth, 0.0], (n, 1)), np.zeros((n, 2)), imaged, nav, LineOptions())
+    lines = lines_without_navigation(det, np.tile([depth, 0.0], (n, 1)))
     pipes = sorted(r["mean_y_m"] - np.mean(np.arange(n) * 8.2 * math.tan(a)) for r in lines.rows
                    if r["kind"] == "pipeline")
     assert len(pipes) == 2 and abs(pipes[0] - 300.0) < 1.0 and abs(pipes[1] - 330.0) < 1.0
