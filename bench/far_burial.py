@@ -49,9 +49,14 @@ def main(argv=None) -> None:
     ap.add_argument("--pings", type=int, default=12)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
+    if args.pings < 1:
+        ap.error(f"--pings must be at least 1, got {args.pings}")
     print("| simulation | broadside pings | depth error mean (m) | std (m) | per ping (m) |\n|---|---|---|---|---|")
     for name, options in VARIANTS.items():
         e = depth_errors(args.pings, args.seed, **options)
+        if e.size == 0:
+            print(f"| {name} | 0 | | | (C not broadside, or not detected, in these pings) |", flush=True)
+            continue
         print(f"| {name} | {e.size} | {e.mean():+.2f} | {e.std():.2f} | {' '.join(f'{v:+.1f}' for v in e)} |",
               flush=True)
 

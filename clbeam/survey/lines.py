@@ -28,9 +28,9 @@ to the world ping by ping.
    bends 0.3 m from a straight line over 100 m).  Each seed that the
    candidates so far do not mostly hold grows a candidate; the best by
    score is kept, and one that shared its detections grows again without
-   them.  Detections are used once.  (Kept seed by seed, in seeding order,
-   a seed that strays off a crossing pipeline in dense clutter took the
-   detections of the seed that follows it: the boulder field's pipeline.)
+   them.  Detections are used once.  (Kept seed by seed in the seeds' order,
+   a seed that strayed off a crossing pipeline in dense clutter took the
+   detections of the seed that followed it: the boulder field's pipeline.)
 3. **Scores** (:mod:`clbeam.survey.line_score`): how unlikely the line is as
    a chance alignment of the clutter measured around it; and a **kind**
    from its burial and position (:func:`line_kind`).
@@ -132,8 +132,8 @@ class Track:
 def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Track]:
     """Lines of detections (steps 1 and 2 of the module): every track of at least ``options.min_hits`` pings.
 
-    Each seed not mostly covered by an earlier one's track grows a candidate
-    track, the detections shared between candidates; the best candidate by
+    Each seed of which earlier candidates hold at most ``SKIP_CLAIMED`` grows
+    a candidate track, the detections shared between candidates; the best candidate by
     ``rank`` is kept and takes its detections, and a candidate that shared
     some grows again from its seed without them (a lazy greedy choice: in
     dense clutter a seed that strays off a line must not take the line's
@@ -145,7 +145,7 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
     options : LineOptions
     rank : callable, optional
         ``rank(track) -> float``, higher first (the line's score,
-        :func:`clbeam.survey.line_products.survey_lines`); by default its
+        :func:`clbeam.survey.line_products.line_ranker`); by default its
         number of pings.
 
     Returns
