@@ -42,6 +42,8 @@ def survey_scene(spec: str, work: Path, lines: LineOptions):
     if not nc.exists():
         write_ping_file(simulate(load_scene(name), seed=int(seed or 0)), nc)
     scan = scan_inputs([nc])
+    if not scan.files:
+        raise SystemExit(f"lines_eval: {nc} is not a readable ping file; delete it to simulate the scene again")
     grid = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=scan.max_range_m, min_range_m=0.0,
                              angles_deg=(-80.0, 80.0))
     # clbeam survey's defaults: the seabed band given, no per-ping clutter test (the lines do that job)
