@@ -21,7 +21,7 @@ from clbeam.survey.burial import arc_constrained, specular_fit
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
-from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, smooth_path
+from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, line_path
 from clbeam.survey.specular import fading_fit, fading_floor_db, specular_crossing
 
 log = logging.getLogger(__name__)
@@ -232,7 +232,7 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     centres, the detections' levels (or ``None``)."""
     sb, centre_yz, level = pings_info
     m = tr.members
-    path_y = smooth_path(frame, tr, options.fit_length_m / 2)
+    path_y = line_path(frame, tr, options)
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = rank(tr)
@@ -263,7 +263,7 @@ def line_ranker(frame: TrackFrame, options: LineOptions):
     def rank(tr: Track) -> float:
         key = tr.members.tobytes()
         if key not in memo:
-            path_y = smooth_path(frame, tr, options.fit_length_m / 2)
+            path_y = line_path(frame, tr, options)
             burial = line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0]
             memo[key] = _score(frame, tr, path_y, burial, options, size)
         return memo[key]

@@ -51,6 +51,9 @@ MAX_SEEDS_PER_GRID = 200
 #: a seed of which candidates already hold more than this share grows no candidate of its own (they cost a
 #: follow each; at one half the boulder field's pipeline seeds were all skipped)
 SKIP_CLAIMED = 0.7
+#: a line whose members' RMS distance from its path is at least this share of the smear's half-width
+#: (``r beam |tan a| / 2``) is smeared (a rough crossing pipe: about 0.25-0.6; a tight line at a heading: 0.02)
+SMEARED_SPREAD = 0.15
 
 
 @dataclass
@@ -439,13 +442,51 @@ def smooth_path(frame: TrackFrame, track: Track, half_width_m: float) -> np.ndar
     return local_linear(s, y, frame.ping_s[track.first:track.last + 1], half_width_m)
 
 
+def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarray:
+    """The line's offset at each ping of its extent (m): :func:`smooth_path` of its members, then twice a local
+    straight-line fit of every detection inside its gates about that path, weighted by CF.  Across, the gate
+    is :func:`across_gate` at the path's slope, narrowed to 2.5 times the members' RMS distance from the path
+    (at least ``across_gate_m``) unless they spread over ``SMEARED_SPREAD`` of the smear: a tight line at a
+    heading takes in no clutter or neighbour the smear's width away; in burial, :func:`burial_ok` about the
+    line's.  A crossing line's echo smears over the stretch of pipe inside
+    the transmit beam, several detections a ping across the gate, of which the track holds one; their centre
+    is where the pipe crosses."""
+    half = options.fit_length_m / 2
+    path = smooth_path(frame, track, half)
+    s_ext = frame.ping_s[track.first:track.last + 1]
+    if path.size < 2 or np.ptp(s_ext) <= 0:
+        return path
+    idx = np.arange(int(frame.starts[track.first]), int(frame.starts[track.last + 1]))
+    k = np.searchsorted(frame.pings, frame.ping[idx]) - track.first
+    b_hat = burial_estimate(frame.b[track.members], frame.b_sigma[track.members])
+    near_burial = burial_ok(frame.b[idx], frame.b_sigma[idx], b_hat, options)
+    m = track.members
+    km = np.searchsorted(frame.pings, frame.ping[m]) - track.first
+    spread = float(np.sqrt(np.mean((frame.y[m] - path[km]) ** 2)))
+    smear = float(np.mean(0.5 * math.radians(options.beam_width_deg) * frame.r[m]
+                          * np.abs(np.gradient(path, s_ext)[km])))
+    # members spread over a good part of the smear: the line is smeared, its gate holds the smear; else a tight
+    # line at a heading, whose gate is its members' spread (a neighbour or clutter the smear's width away stays out)
+    widest = np.inf if spread >= SMEARED_SPREAD * smear else max(options.across_gate_m, 2.5 * spread)
+    for _ in range(2):
+        slope = np.gradient(path, s_ext)
+        gate = np.minimum(across_gate(frame, idx, slope[k], options), widest)
+        inside = idx[near_burial & (np.abs(frame.y[idx] - path[k]) <= gate)]
+        if inside.size < 3:
+            break
+        path = local_linear(frame.s[inside], frame.y[inside], s_ext, half, weights=frame.cf[inside])
+    return path
+
+
 def local_linear(s: np.ndarray, y: np.ndarray, at: np.ndarray, half_width_m: float, *,
-                 leave_out: bool = False) -> np.ndarray:
-    """Local straight-line fit of ``y(s)`` evaluated at ``at`` (tricube weights of half-width ``half_width_m``;
-    at least the three nearest points weigh in).  ``leave_out``: ``at`` is ``s`` and each point's own weight is
-    0 (its leave-one-out prediction, for outliers at the ends of a track)."""
+                 leave_out: bool = False, weights: np.ndarray | None = None) -> np.ndarray:
+    """Local straight-line fit of ``y(s)`` evaluated at ``at`` (tricube weights of half-width ``half_width_m``,
+    times ``weights`` when given; at least the three nearest points weigh in).  ``leave_out``: ``at`` is ``s``
+    and each point's own weight is 0 (its leave-one-out prediction, for outliers at the ends of a track)."""
     d = (s[None, :] - at[:, None]) / max(half_width_m, 1e-9)
     w = np.clip(1 - np.abs(d) ** 3, 0, None) ** 3
+    if weights is not None:
+        w = w * np.asarray(weights, dtype=np.float64)[None, :]
     far = np.abs(d)
     if leave_out:
         np.fill_diagonal(far, np.inf)

@@ -21,7 +21,7 @@ from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_products import line_kind
 from clbeam.survey.line_score import SearchSize, line_score, log10_binomial_tail
 from clbeam.survey.line_score import tests_per_km as n_tests_per_km
-from clbeam.survey.lines import TrackFrame, find_tracks, line_burial, smooth_path
+from clbeam.survey.lines import TrackFrame, find_tracks, line_burial, line_path, smooth_path
 
 SPACING = 8.0
 SWATH = (-700.0, 700.0)
@@ -246,20 +246,20 @@ def test_specular_fit_tells_a_migrated_specular_echo_from_a_diffuse_one():
     assert abs(diffuse["k"]) < 3 * diffuse["k_error"]
 
 
-def test_a_crossing_line_smeared_over_the_beam_is_one_track_along_its_centre():
-    """A rough pipe at 40 degrees 330 m out: each ping sees the stretch inside
-    the 4.5-degree beam, several detections over +-10 m across.  One track
-    follows it, its path within half the smear's half-width (RMS) of the pipe's crossings."""
-    rng = np.random.default_rng(8)
-    n, a = 48, math.radians(40.0)
+def smeared_crossing_frame(seed: int, per_ping: tuple = (1, 4), n: int = 48, heading_deg: float = 40.0):
+    """A rough pipe at ``heading_deg`` 150-480 m out (225 m deep): each ping sees the stretch inside the
+    4.5-degree beam, ``per_ping`` (low, high exclusive) detections uniform over ``r beam tan(a)`` across;
+    uniform clutter.  The frame, and the pipe's crossing and the smear's half-width at each ping (m)."""
+    rng = np.random.default_rng(seed)
+    a = math.radians(heading_deg)
     s_ping = np.arange(n) * SPACING
+    truth = 150.0 + s_ping * math.tan(a)
+    half = 0.5 * math.radians(4.5) * np.hypot(truth, 225.0) * math.tan(a)
     ping, y, b = [], [], []
     for k in range(n):
-        y_c = 150.0 + s_ping[k] * math.tan(a)
-        half = 0.5 * math.radians(4.5) * math.hypot(y_c, 225.0) * math.tan(a)
-        for _ in range(rng.integers(1, 4)):
+        for _ in range(rng.integers(*per_ping)):
             ping.append(k)
-            y.append(y_c + rng.uniform(-half, half))
+            y.append(truth[k] + rng.uniform(-half[k], half[k]))
             b.append(1.0 + rng.normal(0, 0.3))
         n_c = rng.poisson(0.03 * 1400)
         ping += [k] * n_c
@@ -268,16 +268,37 @@ def test_a_crossing_line_smeared_over_the_beam_is_one_track_along_its_centre():
     ping, y, b = map(np.asarray, (ping, y, b))
     o = np.argsort(ping, kind="stable")
     ping, y, b = ping[o], y[o], b[o]
-    r = np.hypot(y, 225.0)
     frame = TrackFrame(ping=ping, s=s_ping[ping], y=y, b=b, cf=np.full(ping.size, 0.6), b_sigma=np.full(ping.size, 0.3),
-                       b_post=b, pings=np.arange(n), ping_s=s_ping, r=r)
+                       b_post=b, pings=np.arange(n), ping_s=s_ping, r=np.hypot(y, 225.0))
+    return frame, truth, half
+
+
+def test_a_crossing_line_smeared_over_the_beam_is_one_track_along_its_centre():
+    """A rough pipe at 40 degrees 330 m out: each ping sees the stretch inside
+    the 4.5-degree beam, several detections over +-10 m across.  One track
+    follows it, its path within half the smear's half-width (RMS) of the pipe's crossings."""
+    frame, truth, half = smeared_crossing_frame(8)
     tracks = [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30]
     assert len(tracks) == 1
     t = tracks[0]
-    truth = 150.0 + frame.ping_s[t.first:t.last + 1] * math.tan(a)
-    half = 0.5 * math.radians(4.5) * np.hypot(truth, 225.0) * math.tan(a)
-    assert np.sqrt(np.mean((smooth_path(frame, t, 60.0) - truth) ** 2)) < 0.5 * half.mean()
-    assert t.last - t.first + 1 >= 0.9 * n
+    ext = slice(t.first, t.last + 1)
+    assert np.sqrt(np.mean((smooth_path(frame, t, 60.0) - truth[ext]) ** 2)) < 0.5 * half[ext].mean()
+    assert t.last - t.first + 1 >= 0.9 * frame.pings.size
+
+
+def test_a_smeared_line_path_is_the_centre_of_all_its_detections_not_of_the_one_a_ping_it_holds():
+    """4-6 detections a ping over the smear (+-12 m): the track holds one a ping, and its members' smoothed
+    path is 4.6-7.5 m (RMS) off the crossings; :func:`line_path`, the CF-weighted fit of every detection in
+    the line's gates, is within a third of the smear's half-width, and on average 0.6 of the members' error."""
+    member_errors, line_errors = [], []
+    for seed in range(8, 14):
+        frame, truth, half = smeared_crossing_frame(seed, per_ping=(4, 7))
+        t = [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30][0]
+        ext = slice(t.first, t.last + 1)
+        member_errors.append(np.sqrt(np.mean((smooth_path(frame, t, 60.0) - truth[ext]) ** 2)))
+        line_errors.append(np.sqrt(np.mean((line_path(frame, t, LineOptions()) - truth[ext]) ** 2)))
+        assert line_errors[-1] < 0.35 * half[ext].mean(), seed
+    assert np.mean(line_errors) < 0.6 * np.mean(member_errors)
 
 
 @pytest.mark.parametrize("preferred", [0, 1])
