@@ -232,7 +232,7 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     centres, the detections' levels (or ``None``)."""
     sb, centre_yz, level = pings_info
     m = tr.members
-    path_y = line_path(frame, tr, options)
+    path_y = rank.path(tr)
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = rank(tr)
@@ -254,19 +254,23 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
 
 
 def line_ranker(frame: TrackFrame, options: LineOptions):
-    """``rank(track) -> score``: a track's score (:func:`_score` on its smoothed path and burial, against the
-    search's extent in ``frame``), remembered by its detections; what :func:`~clbeam.survey.lines.find_tracks`
-    chooses tracks by."""
+    """``rank(track) -> score``: a track's score (:func:`_score` on its path, :func:`~clbeam.survey.lines.
+    line_path`, and burial, against the search's extent in ``frame``), remembered by its detections with the
+    path (``rank.path(track)``); what :func:`~clbeam.survey.lines.find_tracks` chooses tracks by."""
     size = _search_size(frame)
     memo = {}
 
-    def rank(tr: Track) -> float:
+    def scored(tr: Track) -> tuple:
         key = tr.members.tobytes()
         if key not in memo:
             path_y = line_path(frame, tr, options)
             burial = line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0]
-            memo[key] = _score(frame, tr, path_y, burial, options, size)
+            memo[key] = (_score(frame, tr, path_y, burial, options, size), path_y)
         return memo[key]
+
+    def rank(tr: Track) -> float:
+        return scored(tr)[0]
+    rank.path = lambda tr: scored(tr)[1].copy()
     return rank
 
 

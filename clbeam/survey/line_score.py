@@ -215,8 +215,8 @@ def _pooled_rate(counts: np.ndarray, trials: np.ndarray, outlier_p: float) -> fl
     k_least, n_int = np.asarray(counts, dtype=np.int64) - 1, np.asarray(trials, dtype=np.int64)
     for _ in range(len(counts)):
         rate = counts[use].sum() / trials[use].sum()
-        # P(X >= count), X ~ Binomial(trials, rate): the binomial upper tail (scipy.stats.binom.sf, as a ufunc)
-        keep = use & (np.where(k_least < 0, 1.0, bdtrc(k_least, n_int, rate)) >= outlier_p)
+        # P(X >= count), X ~ Binomial(trials, rate): scipy.stats.binom.sf as a ufunc (1 for a count of 0)
+        keep = use & (bdtrc(k_least, n_int, rate) >= outlier_p)
         if keep.sum() == use.sum() or not keep.any():
             break
         use = keep

@@ -348,8 +348,13 @@ def across_gate(frame: TrackFrame, idx: np.ndarray, slope, options: LineOptions)
     """
     slope = np.abs(np.asarray(slope, dtype=np.float64))
     base = options.across_gate_m * np.minimum(np.hypot(1.0, slope), 2.0)
-    smear = 0.5 * math.radians(options.beam_width_deg) * frame.r[idx] * slope
-    return np.maximum(np.maximum(base, 2 * frame.y_sigma[idx]), smear)
+    return np.maximum(np.maximum(base, 2 * frame.y_sigma[idx]), smear_half_width(frame, idx, slope, options))
+
+
+def smear_half_width(frame: TrackFrame, idx: np.ndarray, slope, options: LineOptions) -> np.ndarray:
+    """Half the smear (m) across of a line of slope ``dy/ds`` crossing the track at detections ``idx``: its
+    echo comes from the stretch of it inside the transmit beam, ``r beam |tan a|`` across at slant range ``r``."""
+    return 0.5 * math.radians(options.beam_width_deg) * frame.r[idx] * np.abs(np.asarray(slope, dtype=np.float64))
 
 
 def burial_ok(b: np.ndarray, sigma: np.ndarray, b_hat: float, options: LineOptions) -> np.ndarray:
@@ -463,8 +468,7 @@ def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarr
     m = track.members
     km = np.searchsorted(frame.pings, frame.ping[m]) - track.first
     spread = float(np.sqrt(np.mean((frame.y[m] - path[km]) ** 2)))
-    smear = float(np.mean(0.5 * math.radians(options.beam_width_deg) * frame.r[m]
-                          * np.abs(np.gradient(path, s_ext)[km])))
+    smear = float(np.mean(smear_half_width(frame, m, np.gradient(path, s_ext)[km], options)))
     # members spread over a good part of the smear: the line is smeared, its gate holds the smear; else a tight
     # line at a heading, whose gate is its members' spread (a neighbour or clutter the smear's width away stays out)
     widest = np.inf if spread >= SMEARED_SPREAD * smear else max(options.across_gate_m, 2.5 * spread)
