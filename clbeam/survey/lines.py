@@ -140,7 +140,10 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
     ``rank`` is kept and takes its detections, and a candidate that shared
     some grows again from its seed without them (a lazy greedy choice: in
     dense clutter a seed that strays off a line must not take the line's
-    detections from the seed that follows it).
+    detections from the seed that follows it).  Once the candidates are
+    spent, the seeds skipped at first that are still at most half used grow
+    and are chosen the same way (the candidates that held them may have
+    regrown elsewhere).
 
     Parameters
     ----------
@@ -159,26 +162,44 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
     rank = rank or (lambda tr: float(tr.members.size))
     free = np.zeros(frame.ping.size, dtype=bool)
     claimed = np.zeros(frame.ping.size, dtype=bool)
-    heap = []
+    heap, skipped = [], []
     for i, seed in enumerate(hough_seeds(frame, options)):
         if claimed[seed].mean() > SKIP_CLAIMED:
+            skipped.append((i, seed))
             continue
         track = _grow(frame, seed, free, options)
         if track is not None:
             claimed[track.members] = True
-            heapq.heappush(heap, (-rank(track), i, seed, track))
+        _push(heap, track, i, seed, rank)
     used = np.zeros(frame.ping.size, dtype=bool)
+    tracks = _choose(frame, heap, used, options, rank)
+    # a seed skipped for candidates that then regrew elsewhere or lost out would be lost: it grows now
+    for i, seed in skipped:
+        if used[seed].sum() <= seed.size // 2:
+            _push(heap, _grow(frame, seed, used, options), i, seed, rank)
+    tracks += _choose(frame, heap, used, options, rank)
+    tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
+    return tracks
+
+
+def _push(heap: list, track: Track | None, i: int, seed: np.ndarray, rank) -> None:
+    """A grown candidate onto the heap, best rank first (``None``: nothing)."""
+    if track is not None:
+        heapq.heappush(heap, (-rank(track), i, seed, track))
+
+
+def _choose(frame: TrackFrame, heap: list, used: np.ndarray, options: LineOptions, rank) -> list[Track]:
+    """Tracks taken from the candidates' heap until it is empty: the best is kept when none of its detections is
+    ``used`` (then marked used); else it grows again from its seed without them (if at most half the seed is
+    used)."""
     tracks = []
     while heap:
         _, i, seed, track = heapq.heappop(heap)
         if not used[track.members].any():
             used[track.members] = True
             tracks.append(track)
-            continue
-        track = _grow(frame, seed, used, options) if used[seed].sum() <= seed.size // 2 else None
-        if track is not None:
-            heapq.heappush(heap, (-rank(track), i, seed, track))
-    tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
+        elif used[seed].sum() <= seed.size // 2:
+            _push(heap, _grow(frame, seed, used, options), i, seed, rank)
     return tracks
 
 

@@ -16,6 +16,7 @@ import pytest
 from scipy.stats import binom
 
 from clbeam.errors import OptionError
+from clbeam.survey import lines as lines_module
 from clbeam.survey.burial import arc_constrained, seabed_line, specular_fit
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_products import line_kind
@@ -327,3 +328,33 @@ def test_the_better_ranked_of_two_branches_takes_the_stem_they_share(preferred):
     assert won[0].last - won[0].first + 1 >= 0.95 * n
     assert np.sum(owner[won[0].members] == preferred) >= 0.9 * np.sum(owner == preferred)
     assert frame.ping[lost[0].members].min() >= half - 2
+
+
+def test_a_seed_skipped_for_a_candidate_that_later_lost_its_line_still_grows(monkeypatch):
+    """Line 0 runs over 60 pings, line 1 branches off it at 3 degrees from ping 30.
+    Seeds, in order: line 0's first ten pings (its candidate holds all of line
+    0), line 0's pings 40-49 (then skipped: that candidate holds them) and line
+    1's pings 40-49.  ``rank`` prefers line 1's heading, so line 1's candidate
+    takes the stem and line 0's first seed is spent; line 0's second half must
+    still come out as a track, from the seed skipped at first."""
+    n, half = 60, 30
+    stem = {"y0": -250.0, "heading": 5.0, "p": 0.95}
+    y_fork = -250.0 + half * SPACING * math.tan(math.radians(5.0))
+    branch = {"y0": y_fork - half * SPACING * math.tan(math.radians(8.0)), "heading": 8.0, "p": 0.95, "gap": (0, half - 1)}
+    frame, owner = synthetic_frame(n, [stem, branch], 0.0, seed=11)
+
+    def seed_of(line, lo, hi):
+        return np.flatnonzero((owner == line) & (frame.ping >= lo) & (frame.ping <= hi))
+    seeds = [seed_of(0, 0, 9), seed_of(0, 40, 49), seed_of(1, 40, 49)]
+    monkeypatch.setattr(lines_module, "hough_seeds", lambda frame, options: seeds)
+
+    def rank(track):
+        m = track.members[track.members.size // 2:]
+        slope = np.polyfit(frame.s[m], frame.y[m], 1)[0]
+        return track.members.size - 100 * abs(math.degrees(math.atan(slope)) - 8.0)
+    tracks = find_tracks(frame, LineOptions(), rank=rank)
+    second_half_of_line0 = (owner == 0) & (frame.ping >= half)
+    held = [np.sum(second_half_of_line0[t.members]) / np.sum(second_half_of_line0) for t in tracks]
+    assert max(held) >= 0.8, held  # near the fork the branch holds a few
+    best = tracks[int(np.argmax(held))]
+    assert np.mean(owner[best.members] == 0) >= 0.8
