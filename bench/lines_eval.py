@@ -10,7 +10,9 @@ score threshold, and times the line building of a 1,000-ping survey
 
     python bench/lines_eval.py [--work DIR] [--scenes line1,line4,cross,boulders,clutter,clutter:1,clutter:2]
 
-A scene ``NAME:SEED`` is simulated with that random seed (seabed, clutter, noise).
+A scene ``NAME:SEED`` is simulated with that random seed (seabed, clutter,
+noise); a scene given with several seeds gets a table of its pipelines'
+burial errors over them, against the standard errors their lines report.
 """
 
 from __future__ import annotations
@@ -54,20 +56,42 @@ def survey_scene(spec: str, work: Path, lines: LineOptions):
     return res, nc, out, opts
 
 
-def scene_rows(name: str, products, nc: Path) -> list:
-    """Table rows of one scene."""
+def scene_rows(name: str, products, nc: Path) -> tuple[list, list]:
+    """Table rows of one scene, and per pipeline ``(target, burial error, the line's own standard error)`` (m)."""
     scored = score_survey(products, [nc])
     if scored is None:
-        return []
+        return [], []
     rows, summary = scored
-    out = []
+    out, burials = [], []
+    by_line = {r["line"]: r for r in products.lines.rows}
     for r in rows:
         out.append(f"| {name} | {r['target']} | {r['detectable_pings']} | {r['pings_on_line']} "
                    f"({100 * r['on_line_fraction']:.0f} %) | {r['fragments']} | {r['position_rms_m']:.2f} | "
                    f"{r['burial_error_m']:+.2f} | {summary['false_lines']} |")
+        reported = by_line[r["line"]]["burial_error_m"] if r["line"] in by_line else float("nan")
+        burials.append((r["target"], r["burial_error_m"], reported))
     if not rows:
         out.append(f"| {name} | (none) | | | | | | {summary['false_lines']} |")
-    return out
+    return out, burials
+
+
+def burial_over_seeds(burials: dict) -> list:
+    """Per scene surveyed with more than one seed and per pipeline: the RMS of its burial error over the seeds,
+    how many came within 0.5 m, and the mean standard error its lines reported; ``burials``: scene name ->
+    list of :func:`scene_rows`' triples, one list per seed."""
+    out = ["| scene | pipeline | surveys (seeds) | burial error, RMS (m) | largest (m) | within 0.5 m "
+           "| reported standard error, mean (m) |", "|---|---|---|---|---|---|---|"]
+    for name, runs in burials.items():
+        if len(runs) < 2:
+            continue
+        for target in dict.fromkeys(t for run in runs for t, _, _ in run):
+            err = np.array([e for run in runs for t, e, _ in run if t == target], dtype=np.float64)
+            se = np.array([r for run in runs for t, _, r in run if t == target], dtype=np.float64)
+            found = np.isfinite(err)
+            out.append(f"| {name} | {target} | {found.sum()} of {len(runs)} | {np.sqrt(np.mean(err[found] ** 2)):.2f} "
+                       f"| {np.max(np.abs(err[found])):.2f} | {np.sum(np.abs(err[found]) <= 0.5)} "
+                       f"| {np.nanmean(se):.2f} |")
+    return out if len(out) > 2 else []
 
 
 def false_rate(runs: list, thresholds=(-6, -4, -2, 0, 2, 4, 6)) -> list:
@@ -125,11 +149,13 @@ def main(argv=None) -> None:
     args.work.mkdir(parents=True, exist_ok=True)
     table = ["| scene | pipeline | detectable pings | on its line | fragments | position RMS (m) | burial error (m) "
              "| false pipeline lines |", "|---|---|---|---|---|---|---|---|"]
-    clutter = []
+    clutter, burials = [], {}
     for spec in args.scenes.split(","):
         t0 = time.perf_counter()
         res, nc, out, opts = survey_scene(spec, args.work, LineOptions())
-        table += scene_rows(spec, res.products, nc)
+        rows, scene_burials = scene_rows(spec, res.products, nc)
+        table += rows
+        burials.setdefault(spec.partition(":")[0], []).append(scene_burials)
         scores = [r["score"] for r in res.products.lines.rows if r["kind"] == "pipeline"]
         print(f"{spec}: surveyed in {time.perf_counter() - t0:.0f} s, {res.products.n_pipelines} pipeline line(s)"
               + (f" scoring {min(scores):.1f}-{max(scores):.1f}" if scores else ""))
@@ -138,6 +164,9 @@ def main(argv=None) -> None:
     if clutter:
         print("\n" + "\n".join(false_rate(clutter)))
     print("\n" + "\n".join(table))
+    seeds = burial_over_seeds({k: v for k, v in burials.items() if k != "clutter"})
+    if seeds:
+        print("\nBurials over noise seeds\n\n" + "\n".join(seeds))
     print("\n" + time_thousand_pings())
 
 

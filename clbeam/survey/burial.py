@@ -29,9 +29,65 @@ import math
 
 import numpy as np
 
-#: angle slide of a coherence peak along its arc at broadside (rad): 0.2 degree measured on line1 and line4 at
-#: the paper's grid, 0.3 on coarser grids (0.25 degree, 0.5 m)
+#: angle slide of a coherence peak along its arc at broadside (rad) when its SNR is unknown: 0.2 degree measured
+#: on line1 and line4 at the paper's grid, 0.3 on coarser grids (0.25 degree, 0.5 m)
 ARC_SIGMA_RAD = math.radians(0.3)
+#: a peak's angle error at broadside in receive beam widths (``lambda / W``) times ``sqrt(SNR)``: 0.33-0.51
+#: measured on the simulated pipelines (``docs/lines.md``), the Cramer-Rao bound's form for an array
+SLIDE_PER_BEAM = 0.5
+#: a peak's angle error at broadside at high SNR (rad): 0.02-0.03 degree measured on clean pipes above 37 dB,
+#: more where a pipe's echo mixes with boulders or smears as it crosses: 0.15 held those lines together
+SLIDE_FLOOR_RAD = math.radians(0.15)
+#: the floor on coarse grids, in grid angle steps (0.19 measured at 0.5 degree)
+SLIDE_PER_STEP = 0.3
+
+
+def receive_beam_width_rad(band_hz, array_width_m, sound_speed_m_s: float = 1500.0) -> float:
+    """The receive array's beam width at broadside, ``lambda / W`` at the band's centre (rad; NaN when the band
+    or the width is unknown or not positive).
+
+    Parameters
+    ----------
+    band_hz : sequence of float or None
+        The pulse's band ``(f0, f1)`` (Hz).
+    array_width_m : float or None
+        The array's width ``W`` (m).
+    sound_speed_m_s : float
+        Sound speed at the array (m/s).
+    """
+    if band_hz is None or array_width_m is None:
+        return math.nan
+    centre = 0.5 * (float(band_hz[0]) + float(band_hz[1]))
+    width = float(array_width_m)
+    if not (centre > 0 and width > 0 and sound_speed_m_s > 0):
+        return math.nan
+    return sound_speed_m_s / centre / width
+
+
+def peak_slide_rad(snr_db, beam_width_rad: float, angle_step_rad: float = 0.0) -> np.ndarray:
+    """Standard deviation of a coherence peak's angle at broadside (rad) from its SNR.
+
+    ``sqrt((SLIDE_PER_BEAM beam_width_rad)^2 / SNR + floor^2)``, the floor
+    the larger of :data:`SLIDE_FLOOR_RAD` and ``SLIDE_PER_STEP`` grid steps:
+    noise moves a peak by a fraction of the beam over the square root of its
+    SNR (linear); :data:`ARC_SIGMA_RAD` where the SNR or the beam width is
+    unknown (NaN).  Away from broadside :func:`arc_constrained` divides it
+    by ``cos(theta)``.
+
+    Parameters
+    ----------
+    snr_db : array_like
+        ``(n,)`` the peaks' intensities over the noise floor (dB).
+    beam_width_rad : float
+        The receive array's beam width at broadside, ``lambda / W`` at the band's centre (rad).
+    angle_step_rad : float
+        The image grid's angle step (rad).
+    """
+    snr = 10.0 ** (np.asarray(snr_db, dtype=np.float64) / 10.0)
+    floor = max(SLIDE_FLOOR_RAD, SLIDE_PER_STEP * angle_step_rad)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slide = np.hypot(SLIDE_PER_BEAM * beam_width_rad / np.sqrt(snr), floor)
+    return np.where(np.isfinite(slide), slide, ARC_SIGMA_RAD)
 
 
 def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, n_trials: int = 200,
@@ -96,7 +152,7 @@ def _refine(y: np.ndarray, z: np.ndarray, z0: float, slope: float, tolerance_m: 
 
 
 def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior_burial_m: float = 1.0,
-                    prior_sigma_m: float = 2.0, arc_sigma_rad: float = ARC_SIGMA_RAD) -> tuple:
+                    prior_sigma_m: float = 2.0, arc_sigma_rad=ARC_SIGMA_RAD) -> tuple:
     """Peaks moved along their arcs to the most likely point (module docstring).
 
     Parameters
@@ -109,8 +165,8 @@ def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior
         ``(z0, slope)`` of the ping's seabed (:func:`seabed_line`), or ``(n, 2)`` one per peak.
     prior_burial_m, prior_sigma_m : float
         Burial the prior expects and its spread (m).
-    arc_sigma_rad : float
-        Slide of a peak's angle at broadside (rad).
+    arc_sigma_rad : float or array_like
+        Slide of a peak's angle at broadside (rad): one for all or ``(n,)`` (:func:`peak_slide_rad`).
 
     Returns
     -------
@@ -128,7 +184,7 @@ def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior
     z0, slope = sb[:, 0], sb[:, 1]
     theta = np.arctan2(y - c[:, 0], z - c[:, 1])
     rng = np.hypot(y - c[:, 0], z - c[:, 1])
-    sigma_t = rng * arc_sigma_rad / np.maximum(np.abs(np.cos(theta)), 0.05)
+    sigma_t = rng * np.asarray(arc_sigma_rad, dtype=np.float64) / np.maximum(np.abs(np.cos(theta)), 0.05)
     # moving t along the arc (towards larger angle): dy = cos(theta) t, dz = -sin(theta) t
     k = -np.sin(theta) - slope * np.cos(theta)
     burial = z - (z0 + slope * y)

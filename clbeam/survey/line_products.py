@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LINE_KINDS re-exported)
-from clbeam.survey.burial import arc_constrained, specular_fit
+from clbeam.survey.burial import ARC_SIGMA_RAD, arc_constrained, specular_fit
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
@@ -41,6 +41,10 @@ class LineDetections:
         ``(n,)`` intensities (dB): with them a line whose echoes fade as a
         smooth pipe's specular echo does is moved to where it crosses the
         pings' planes (:mod:`clbeam.survey.specular`).
+    slide_rad : numpy.ndarray or None
+        ``(n,)`` each peak's slide along its arc: the standard deviation of
+        its angle at broadside (rad, :func:`clbeam.survey.burial.peak_slide_rad`);
+        ``None``: :data:`clbeam.survey.burial.ARC_SIGMA_RAD` for all.
     """
 
     ping: np.ndarray
@@ -48,6 +52,7 @@ class LineDetections:
     z: np.ndarray
     cf: np.ndarray
     intensity_db: np.ndarray | None = None
+    slide_rad: np.ndarray | None = None
 
 
 @dataclass
@@ -204,7 +209,9 @@ def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np
     ya, b, sd, bpost, sy = (np.full(p.size, np.nan) for _ in range(5))
     known = np.isfinite(sb[p]).all(axis=1)
     k = known
-    ya[k], b[k], sd[k], bpost[k], sy[k] = arc_constrained(y[k], z[k], centre_yz[p[k]], sb[p[k]])
+    slide = np.full(p.size, ARC_SIGMA_RAD) if det.slide_rad is None else np.asarray(det.slide_rad)[order]
+    ya[k], b[k], sd[k], bpost[k], sy[k] = arc_constrained(y[k], z[k], centre_yz[p[k]], sb[p[k]],
+                                                          arc_sigma_rad=slide[k])
     ya[~known] = y[~known]
     sy[~known] = 0.0
     r = np.hypot(y - centre_yz[p, 0], z - centre_yz[p, 1])

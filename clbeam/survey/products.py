@@ -43,7 +43,7 @@ from clbeam.io.survey_store import (
     update_store,
 )
 from clbeam.survey.association import associate, describe_objects
-from clbeam.survey.burial import seabed_line
+from clbeam.survey.burial import peak_slide_rad, receive_beam_width_rad, seabed_line
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.inputs import one_line
 from clbeam.survey.line_products import LineDetections, SurveyLines, line_rows, survey_lines, track_distance_m
@@ -119,6 +119,7 @@ class _Detections:
     cf: np.ndarray
     row: np.ndarray
     intensity_db: np.ndarray = None
+    snr_db: np.ndarray = None
     cols: dict = None
     pos: np.ndarray = None
     labels: np.ndarray = None
@@ -170,7 +171,8 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     nav, det = first.nav, first.detections
     nav.finish(first.per_ping["imaged"])
     _associate(det, nav, assoc)
-    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db), first.seabed,
+    slide = peak_slide_rad(det.snr_db, _beam_width_rad(first), _angle_step_rad(options.grid))
+    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db, slide), first.seabed,
                          np.stack([first.per_ping["centre_y"], first.per_ping["centre_z"]], axis=1),
                          first.per_ping["imaged"], nav, options.lines)
     row_labels = {c: np.full(first.n_rows, -1, dtype=np.int64) for c in ("object", "line")}
@@ -215,6 +217,19 @@ def _write_features(output: Path, files: dict, det: _Detections, lines: SurveyLi
                          LINE_INTEGERS, paths, "clbeam lines", categories={"kind": LINE_KINDS})
 
 
+def _beam_width_rad(first: _FirstPass) -> float:
+    """The receive beam's width of the survey's sonar (rad, NaN: unknown) at its median sound speed."""
+    c = first.per_ping["sound_speed"]
+    c = float(np.nanmedian(c)) if np.isfinite(c).any() else 1500.0
+    return receive_beam_width_rad(first.sonar.get("pulse_band_hz"), first.sonar.get("array_width_m"), c)
+
+
+def _angle_step_rad(grid) -> float:
+    """The grid's median angle step (rad; 0 with one angle)."""
+    a = np.asarray(grid.angles_deg, dtype=np.float64)
+    return math.radians(float(np.median(np.diff(a)))) if a.size > 1 else 0.0
+
+
 def _nan(v) -> float:
     return np.nan if v is None else float(v)
 
@@ -249,7 +264,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
     per_ping = {"imaged": np.zeros(n, dtype=bool), "n_peaks": np.full(n, -1, dtype=np.int32)}
     per_ping.update({k: np.full(n, fill, dtype=dtype) for k, (_, fill, dtype) in _RECORD_VARIABLES.items()})
     det_ping, det_row = array.array("q"), array.array("q")
-    det_y, det_z, det_cf, det_level = (array.array("d") for _ in range(4))
+    det_y, det_z, det_cf, det_level, det_snr = (array.array("d") for _ in range(5))
     sonar = {}
     seabed = np.full((n, 2), np.nan)
     row = 0
@@ -278,11 +293,13 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
                 det_z.append(pk["z_m"])
                 det_cf.append(pk["cf"])
                 det_level.append(pk.get("intensity_db", np.nan))
+                det_snr.append(_nan(pk.get("snr_db")))
                 det_row.append(row + k)
         row += len(rec["peaks"])
     dets = _Detections(np.asarray(det_ping, dtype=np.int64), *(np.asarray(a, dtype=np.float64)
                                                                for a in (det_y, det_z, det_cf)),
-                       row=np.asarray(det_row, dtype=np.int64), intensity_db=np.asarray(det_level, dtype=np.float64))
+                       row=np.asarray(det_row, dtype=np.int64), intensity_db=np.asarray(det_level, dtype=np.float64),
+                       snr_db=np.asarray(det_snr, dtype=np.float64))
     return _FirstPass(nav, per_ping, dets, row, sonar, seabed)
 
 
