@@ -88,9 +88,13 @@ def burial_over_seeds(burials: dict) -> list:
             err = np.array([e for run in runs for t, e, _ in run if t == target], dtype=np.float64)
             se = np.array([r for run in runs for t, _, r in run if t == target], dtype=np.float64)
             found = np.isfinite(err)
+            if not found.any():
+                out.append(f"| {name} | {target} | 0 of {len(runs)} | | | 0 | |")
+                continue
+            se = se[np.isfinite(se)]
             out.append(f"| {name} | {target} | {found.sum()} of {len(runs)} | {np.sqrt(np.mean(err[found] ** 2)):.2f} "
                        f"| {np.max(np.abs(err[found])):.2f} | {np.sum(np.abs(err[found]) <= 0.5)} "
-                       f"| {np.nanmean(se):.2f} |")
+                       f"| {np.mean(se) if se.size else float('nan'):.2f} |")
     return out if len(out) > 2 else []
 
 

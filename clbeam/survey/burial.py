@@ -40,6 +40,8 @@ SLIDE_PER_BEAM = 0.5
 SLIDE_FLOOR_RAD = math.radians(0.15)
 #: the floor on coarse grids, in grid angle steps (0.19 measured at 0.5 degree)
 SLIDE_PER_STEP = 0.3
+#: SNR below which the slide stops growing (dB): a peak that weak lies anywhere in the beam's main lobe
+MIN_SLIDE_SNR_DB = 0.0
 
 
 def receive_beam_width_rad(band_hz, array_width_m, sound_speed_m_s: float = 1500.0) -> float:
@@ -70,9 +72,12 @@ def peak_slide_rad(snr_db, beam_width_rad: float, angle_step_rad: float = 0.0) -
     ``sqrt((SLIDE_PER_BEAM beam_width_rad)^2 / SNR + floor^2)``, the floor
     the larger of :data:`SLIDE_FLOOR_RAD` and ``SLIDE_PER_STEP`` grid steps:
     noise moves a peak by a fraction of the beam over the square root of its
-    SNR (linear); :data:`ARC_SIGMA_RAD` where the SNR or the beam width is
-    unknown (NaN).  Away from broadside :func:`arc_constrained` divides it
-    by ``cos(theta)``.
+    SNR (linear), the SNR taken as at least :data:`MIN_SLIDE_SNR_DB`; the
+    larger of :data:`ARC_SIGMA_RAD` and the floor where the SNR or the beam
+    width is unknown (NaN).  Away from broadside :func:`arc_constrained`
+    divides it by ``cos(theta)``.  The noise term holds from about 10 dB
+    up; nearer the detection threshold a peak can jump to a noise peak
+    elsewhere in the main lobe and scatters more.
 
     Parameters
     ----------
@@ -83,11 +88,12 @@ def peak_slide_rad(snr_db, beam_width_rad: float, angle_step_rad: float = 0.0) -
     angle_step_rad : float
         The image grid's angle step (rad).
     """
-    snr = 10.0 ** (np.asarray(snr_db, dtype=np.float64) / 10.0)
+    snr_db = np.atleast_1d(np.asarray(snr_db, dtype=np.float64))
+    # a peak weaker than MIN_SLIDE_SNR_DB slides as one at it: about half the beam
+    snr = 10.0 ** (np.clip(snr_db, MIN_SLIDE_SNR_DB, None) / 10.0)
     floor = max(SLIDE_FLOOR_RAD, SLIDE_PER_STEP * angle_step_rad)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        slide = np.hypot(SLIDE_PER_BEAM * beam_width_rad / np.sqrt(snr), floor)
-    return np.where(np.isfinite(slide), slide, ARC_SIGMA_RAD)
+    slide = np.hypot(SLIDE_PER_BEAM * beam_width_rad / np.sqrt(snr), floor)
+    return np.where(np.isnan(snr_db) | ~np.isfinite(slide), max(ARC_SIGMA_RAD, floor), slide)
 
 
 def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, n_trials: int = 200,

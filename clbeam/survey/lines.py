@@ -28,7 +28,8 @@ to the world ping by ping.
    bends 0.3 m from a straight line over 100 m).  Each seed that the
    candidates so far do not mostly hold grows a candidate; the best by
    score is kept, and one that shared its detections grows again without
-   them.  Detections are used once.  (Kept seed by seed in the seeds' order,
+   them; then the seeds skipped at first grow if still at most half used.
+   Detections are used once.  (Kept seed by seed in the seeds' order,
    a seed that strayed off a crossing pipeline in dense clutter took the
    detections of the seed that followed it: the boulder field's pipeline.)
 3. **Scores** (:mod:`clbeam.survey.line_score`): how unlikely the line is as

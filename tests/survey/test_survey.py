@@ -236,6 +236,38 @@ def test_products_streamed_in_small_blocks_equal_the_products_in_one_block(refer
     assert_same_survey(out, reference)
 
 
+def test_each_detections_slide_follows_its_snr_and_the_sonar(reference, tmp_path, monkeypatch):
+    """The line search gets each detection's slide along its arc from its
+    SNR in the ledger, the sonar's band and width and the grid's step: the
+    closed form ``sqrt((0.5 c / f_c / W)^2 / SNR + floor^2)`` recomputed here
+    from the peaks table (floor 0.15 degree: the 0.25 degree grid's 0.3
+    steps are less)."""
+    import csv
+
+    import clbeam.survey.products as products_module
+    out = tmp_path / "again.zarr"
+    shutil.copytree(reference, out)
+    seen = {}
+    original = products_module.survey_lines
+
+    def spy(det, *args, **kwargs):
+        seen["det"] = det
+        return original(det, *args, **kwargs)
+    monkeypatch.setattr(products_module, "survey_lines", spy)
+    options = _survey_options()
+    finalize_survey(out, options)
+    with open(survey.product_paths(out)["peaks_csv"], newline="") as fh:
+        rows = [r for r in csv.DictReader(fh) if float(r["cf"]) > options.association.threshold]
+    snr = np.array([float(r["snr_db"]) for r in rows])
+    attrs = xr.open_zarr(out).attrs
+    beam = 1500.0 / np.mean(attrs["pulse_band_hz"]) / attrs["array_width_m"]
+    expected = np.hypot(0.5 * beam / np.sqrt(10 ** (snr / 10)), math.radians(0.15))
+    det = seen["det"]
+    assert det.ping.size == len(rows) > 20
+    assert np.allclose(det.y, [float(r["y_m"]) for r in rows]) and np.all(np.isfinite(snr))
+    assert det.slide_rad == pytest.approx(expected, rel=1e-3)
+
+
 # ---------------------------------------------------------------------------
 # Dask
 # ---------------------------------------------------------------------------
