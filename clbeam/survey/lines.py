@@ -28,7 +28,8 @@ to the world ping by ping.
    bends 0.3 m from a straight line over 100 m).  Each seed that the
    candidates so far do not mostly hold grows a candidate; the best by
    score is kept, and one that shared its detections grows again without
-   them; then the seeds skipped at first grow if still at most half used.
+   them; then the seeds skipped at first grow if still at most half used
+   and not mostly held by the tracks or the seeds grown before them.
    Detections are used once.  (Kept seed by seed in the seeds' order,
    a seed that strayed off a crossing pipeline in dense clutter took the
    detections of the seed that followed it: the boulder field's pipeline.)
@@ -144,7 +145,8 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
     detections from the seed that follows it).  Once the candidates are
     spent, the seeds skipped at first that are still at most half used grow
     and are chosen the same way (the candidates that held them may have
-    regrown elsewhere).
+    regrown elsewhere), but for those the tracks and the seeds grown before
+    them in this round hold more than ``SKIP_CLAIMED`` of.
 
     Parameters
     ----------
@@ -174,10 +176,16 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
         _push(heap, track, i, seed, rank)
     used = np.zeros(frame.ping.size, dtype=bool)
     tracks = _choose(frame, heap, used, options, rank)
-    # a seed skipped for candidates that then regrew elsewhere or lost out would be lost: it grows now
+    # a seed skipped for candidates that then regrew elsewhere or lost out would be lost: it grows now, unless
+    # the tracks or the seeds grown before it in this round hold most of it (as in the first round)
+    claimed = used.copy()
     for i, seed in skipped:
-        if used[seed].sum() <= seed.size // 2:
-            _push(heap, _grow(frame, seed, used, options), i, seed, rank)
+        if used[seed].sum() > seed.size // 2 or claimed[seed].mean() > SKIP_CLAIMED:
+            continue
+        track = _grow(frame, seed, used, options)
+        if track is not None:
+            claimed[track.members] = True
+        _push(heap, track, i, seed, rank)
     tracks += _choose(frame, heap, used, options, rank)
     tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
     return tracks
