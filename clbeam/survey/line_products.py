@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LINE_KINDS re-exported)
-from clbeam.survey.burial import ARC_SIGMA_RAD, arc_constrained, specular_fit
+from clbeam.survey.burial import ARC_SIGMA_RAD, SPECULAR_K_SIGMA, arc_constrained, specular_fit
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
@@ -310,7 +310,8 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     (:func:`clbeam.survey.specular.specular_crossing`), when its burials say so (:func:`clbeam.survey.burial.
     specular_fit`: ``k`` within two standard errors of 1 and more than two from 0) or its echoes fade as a
     specular echo's over the pings with a seabed (:func:`_fades`) and the burials do not say otherwise (``k``
-    more than two standard errors below 1); else ``None``."""
+    more than two standard errors below 1); else ``None``.  Its burial is then the fit's with ``k`` drawn
+    towards 1 (:data:`~clbeam.survey.burial.SPECULAR_K_SIGMA`)."""
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     s_ext = frame.ping_s[tr.first:tr.last + 1]
@@ -329,6 +330,9 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     if moved.sum() < 3 or not (by_burial or (fades and not not_specular)):
         return None
     y_c = specular_crossing(frame.y[m][moved], frame.s[m][moved], centre_yz[g[moved], 0], s_ext, options.fit_length_m)
+    # specular, whatever the free fit's k: the burial with k drawn towards the geometry's 1
+    fit = specular_fit(frame.y[m], frame.b[m], frame.b_sigma[m], slope[k], centre_yz[g], sb[g],
+                       k_prior_sigma=SPECULAR_K_SIGMA)
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
 
 
