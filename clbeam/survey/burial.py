@@ -100,6 +100,42 @@ def peak_slide_rad(snr_db, beam_width_rad: float, angle_step_rad: float = 0.0) -
     return np.where(np.isnan(snr_db) | ~np.isfinite(slide), max(ARC_SIGMA_RAD, floor), slide)
 
 
+#: mean square of ``u = pi L phi / lambda`` over a uniform aperture's one-way main lobe, ``sinc^2``, over ``pi^2``:
+#: ``(integral of sin^2 / integral of sin^2 u / u^2, over |u| < pi) / pi^2`` (the mean square angle in ``(lambda/L)^2``)
+MAIN_LOBE_MEAN_SQUARE = 0.11223
+
+
+def offplane_deepening_m(range_m, angle_rad, beam_width_rad: float, band_hz=None) -> np.ndarray:
+    """How much deeper than the seabed a seabed scatterer's peak lies on average (m), from the transmit beam's
+    width along the track.
+
+    The imager takes each echo from the ping's plane: a scatterer at range
+    ``R`` seen ``phi`` off the plane along the track images
+    ``R phi^2 / (2 cos theta)`` deeper (``z = sqrt(z^2 + x^2)``, ``x = R phi``).
+    Seabed scatterers fill the transmit beam, so their peaks lie deeper by
+    the mean of that over the beam: ``phi^2`` averaged over each frequency's
+    main lobe (``MAIN_LOBE_MEAN_SQUARE (lambda / L)^2``) and over a flat band
+    (``lambda^2`` to ``c^2 / (f0 f1)``).  A pipe along the track echoes from
+    the plane and does not.
+
+    Parameters
+    ----------
+    range_m, angle_rad : array_like
+        The peaks' ranges (m) and angles from nadir (rad).
+    beam_width_rad : float
+        The transmit beam's width along the track at the band's centre, ``lambda_c / L`` (rad).
+    band_hz : sequence of float or None
+        The pulse's band ``(f0, f1)`` (Hz); ``None``: one frequency, the centre.
+    """
+    band_factor = 1.0
+    if band_hz is not None and float(band_hz[0]) > 0 and float(band_hz[1]) > 0:
+        f0, f1 = float(band_hz[0]), float(band_hz[1])
+        band_factor = (0.5 * (f0 + f1)) ** 2 / (f0 * f1)
+    mean_square = MAIN_LOBE_MEAN_SQUARE * beam_width_rad ** 2 * band_factor
+    cos_t = np.maximum(np.abs(np.cos(np.asarray(angle_rad, dtype=np.float64))), 0.05)
+    return np.asarray(range_m, dtype=np.float64) * mean_square / (2.0 * cos_t)
+
+
 def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, n_trials: int = 200,
                 seed: int = 0) -> tuple[float, float] | None:
     """The seabed of one ping from its peaks: ``(z0, slope)`` of ``z = z0 + slope y`` (m, 1), or ``None``.

@@ -43,7 +43,7 @@ from clbeam.io.survey_store import (
     update_store,
 )
 from clbeam.survey.association import associate, describe_objects
-from clbeam.survey.burial import peak_slide_rad, receive_beam_width_rad, seabed_line
+from clbeam.survey.burial import offplane_deepening_m, peak_slide_rad, receive_beam_width_rad, seabed_line
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.inputs import one_line
 from clbeam.survey.line_products import LineDetections, SurveyLines, line_rows, survey_lines, track_distance_m
@@ -217,6 +217,16 @@ def _write_features(output: Path, files: dict, det: _Detections, lines: SurveyLi
                          LINE_INTEGERS, paths, "clbeam lines", categories={"kind": LINE_KINDS})
 
 
+def _seabed(rec: dict, beam_width_rad: float) -> tuple | None:
+    """One ping's seabed (:func:`clbeam.survey.burial.seabed_line`) from its peaks, each raised by the depth its
+    echoes from off the ping's plane add (:func:`clbeam.survey.burial.offplane_deepening_m`; none where a peak has
+    no range or angle)."""
+    peaks = rec["peaks"]
+    y, z, r, a = (np.array([_nan(pk.get(k)) for pk in peaks]) for k in ("y_m", "z_m", "range_m", "angle_deg"))
+    deeper = offplane_deepening_m(r, np.radians(a), beam_width_rad, rec.get("band_hz"))
+    return seabed_line(y, z - np.nan_to_num(deeper, nan=0.0))
+
+
 def _beam_width_rad(first: _FirstPass) -> float:
     """The receive beam's width of the survey's sonar (rad, NaN: unknown) at its median sound speed."""
     c = first.per_ping["sound_speed"]
@@ -283,7 +293,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
             # as an image file: the sonar of the first ping written (the lowest survey ping)
             sonar = {"pulse_band_hz": [float(b) for b in rec["band_hz"]],
                      "array_width_m": float(rec["array_width_m"])}
-        fit = seabed_line([pk["y_m"] for pk in rec["peaks"]], [pk["z_m"] for pk in rec["peaks"]])
+        fit = _seabed(rec, math.radians(options.lines.beam_width_deg))
         if fit is not None:
             seabed[g] = fit
         for k, pk in enumerate(rec["peaks"]):
