@@ -8,8 +8,10 @@ is deeper, and nothing lies above it but noise.  :func:`seabed_line` fits
 ``tolerance_m``; of those holding at least half the best count the
 shallowest wins (a strong horizon may hold as many peaks as the seabed, it
 never lies above it); a Tukey-weighted least-squares fit refines it.  The
-seabed is taken as a plane across the swath: over a seabed that bends
-across the swath (a channel, a ridge), burials are off by the bend.
+peaks are first raised by the depth their echoes from off the ping's plane
+add (:func:`offplane_deepening_m`).  The seabed is taken as a plane across
+the swath: over a seabed that bends across the swath (a channel, a ridge),
+burials are off by the bend.
 
 **Positions along the arc.** A peak's range is good to centimetres, its
 angle is not: away from nadir the array's beam widens as ``1 / cos(theta)``
@@ -297,13 +299,19 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
     if ok.sum() < 3 or np.ptp(dz[ok]) <= 0:
         return out
     w = 1 / np.maximum(np.asarray(sigma_m, dtype=np.float64)[ok], 0.3) ** 2
-    a = np.stack([np.ones(ok.sum()), dz[ok]], axis=1)
-    normal, rhs = (a * w[:, None]).T @ a, (a * w[:, None]).T @ b[ok]
-    if k_prior_sigma is not None:  # the prior as one more observation: k = 1
-        normal[1, 1] += k_prior_sigma ** -2
-        rhs[1] += k_prior_sigma ** -2
-    cov = np.linalg.pinv(normal)
-    coef = cov @ rhs
+    coef, cov = _intercept_and_k(dz[ok], b[ok], w, k_prior_sigma)
     out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(np.sqrt(cov[0, 0])),
                k_error=float(np.sqrt(cov[1, 1])))
     return out
+
+
+def _intercept_and_k(dz: np.ndarray, b: np.ndarray, w: np.ndarray, k_prior_sigma: float | None) -> tuple:
+    """Weighted least squares of ``b = intercept + k dz`` (weights ``w``), with a Gaussian prior ``k = 1`` of
+    standard deviation ``k_prior_sigma`` as one more observation (``None``: none): coefficients and covariance."""
+    a = np.stack([np.ones(dz.size), dz], axis=1)
+    normal, rhs = (a * w[:, None]).T @ a, (a * w[:, None]).T @ b
+    if k_prior_sigma is not None:
+        normal[1, 1] += k_prior_sigma ** -2
+        rhs[1] += k_prior_sigma ** -2
+    cov = np.linalg.pinv(normal)
+    return cov @ rhs, cov
