@@ -296,7 +296,7 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
     out = {"k": np.nan, "k_error": np.nan, "burial_m": np.nan, "burial_error_m": np.nan, "y_crossing_m": yc}
     b = np.asarray(burial_m, dtype=np.float64)
     ok = np.isfinite(b) & np.isfinite(sigma_m)
-    if ok.sum() < 3 or np.ptp(dz[ok]) <= 0:
+    if (ok.sum() < 3 or np.ptp(dz[ok]) <= 0) if k_prior_sigma is None else not ok.any():  # free k: 3 over dz
         return out
     w = 1 / np.maximum(np.asarray(sigma_m, dtype=np.float64)[ok], 0.3) ** 2
     coef, cov = _intercept_and_k(dz[ok], b[ok], w, k_prior_sigma)

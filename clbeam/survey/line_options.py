@@ -49,7 +49,9 @@ class LineOptions:
     beam_width_deg : float
         Along-track width of the transmit beam (degree; the SBP29's 3.5 m
         column at the 2-9 kHz band's centre: about 4.5): a line crossing the
-        track is seen over that stretch, smeared across each ping.
+        track is seen over that stretch, smeared across each ping; and each
+        ping's seabed is fitted to its peaks raised by the depth echoes from
+        across that beam add (:func:`clbeam.survey.burial.offplane_deepening_m`).
     nominal_spacing_m : float
         Along-track distance between pings assumed when a survey has neither
         navigation nor ping times and a ship speed (m; the paper's 4 kn at

@@ -245,7 +245,9 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     score = rank(tr)
     spec = _specular(frame, tr, path_y, sb, centre_yz, level, options)
     if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
-        path_y, burial, burial_se = spec["path_y"], spec["burial_m"], spec["burial_error_m"]
+        path_y = spec["path_y"]
+        if math.isfinite(spec["burial_m"]):
+            burial, burial_se = spec["burial_m"], spec["burial_error_m"]
     resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
     z_line = sb[ext, 0] + sb[ext, 1] * path_y + (burial if math.isfinite(burial) else 0.0)
     angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))

@@ -386,3 +386,18 @@ def test_a_seed_skipped_for_a_candidate_that_later_lost_its_line_still_grows(mon
     assert max(held) >= 0.8, held  # near the fork the branch holds a few
     best = tracks[int(np.argmax(held))]
     assert np.mean(owner[best.members] == 0) >= 0.8
+
+
+def test_a_specular_fit_drawn_to_one_gives_a_burial_where_the_free_fit_cannot():
+    """A pipe along the track (no extra depth anywhere, ``dz = 0``): the free
+    fit cannot separate ``k`` from the burial and gives none; with the prior
+    the burial is the weighted mean of the burials (closed form)."""
+    n = 12
+    b = 1.0 + np.linspace(-0.5, 0.5, n)
+    sigma = np.linspace(0.5, 1.0, n)
+    args = (np.full(n, -600.0), b, sigma, np.zeros(n), np.zeros((n, 2)), np.tile([225.0, 0.0], (n, 1)))
+    assert math.isnan(specular_fit(*args)["burial_m"])
+    w = 1 / sigma ** 2
+    prior = specular_fit(*args, k_prior_sigma=SPECULAR_K_SIGMA)
+    assert prior["burial_m"] == pytest.approx(float(np.sum(w * b) / np.sum(w)), abs=1e-9)
+    assert prior["burial_error_m"] == pytest.approx(1 / math.sqrt(np.sum(w)), rel=1e-9)
