@@ -163,32 +163,32 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
         In order of their first ping.
     """
     rank = rank or (lambda tr: float(tr.members.size))
-    free = np.zeros(frame.ping.size, dtype=bool)
-    claimed = np.zeros(frame.ping.size, dtype=bool)
-    heap, skipped = [], []
-    for i, seed in enumerate(hough_seeds(frame, options)):
-        if claimed[seed].mean() > SKIP_CLAIMED:
-            skipped.append((i, seed))
-            continue
-        track = _grow(frame, seed, free, options)
-        if track is not None:
-            claimed[track.members] = True
-        _push(heap, track, i, seed, rank)
     used = np.zeros(frame.ping.size, dtype=bool)
+    heap, skipped = _candidates(frame, enumerate(hough_seeds(frame, options)), used, options, rank)
     tracks = _choose(frame, heap, used, options, rank)
     # a seed skipped for candidates that then regrew elsewhere or lost out would be lost: it grows now, unless
     # the tracks or the seeds grown before it in this round hold most of it (as in the first round)
+    heap, _ = _candidates(frame, skipped, used, options, rank)
+    tracks += _choose(frame, heap, used, options, rank)
+    tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
+    return tracks
+
+
+def _candidates(frame: TrackFrame, seeds, used: np.ndarray, options: LineOptions, rank) -> tuple[list, list]:
+    """Candidate tracks grown among the detections not ``used`` from the seeds ``(index, seed)``, in order, but
+    for those more than half used or of which the used detections and the candidates before them hold more than
+    ``SKIP_CLAIMED``: the candidates' heap and the seeds skipped."""
     claimed = used.copy()
-    for i, seed in skipped:
+    heap, skipped = [], []
+    for i, seed in seeds:
         if used[seed].sum() > seed.size // 2 or claimed[seed].mean() > SKIP_CLAIMED:
+            skipped.append((i, seed))
             continue
         track = _grow(frame, seed, used, options)
         if track is not None:
             claimed[track.members] = True
         _push(heap, track, i, seed, rank)
-    tracks += _choose(frame, heap, used, options, rank)
-    tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
-    return tracks
+    return heap, skipped
 
 
 def _push(heap: list, track: Track | None, i: int, seed: np.ndarray, rank) -> None:

@@ -171,7 +171,7 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     nav, det = first.nav, first.detections
     nav.finish(first.per_ping["imaged"])
     _associate(det, nav, assoc)
-    slide = peak_slide_rad(det.snr_db, _beam_width_rad(first), _angle_step_rad(options.grid))
+    slide = peak_slide_rad(det.snr_db, _receive_beam_rad(first), _angle_step_rad(options.grid))
     lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db, slide), first.seabed,
                          np.stack([first.per_ping["centre_y"], first.per_ping["centre_z"]], axis=1),
                          first.per_ping["imaged"], nav, options.lines)
@@ -227,7 +227,7 @@ def _seabed(rec: dict, beam_width_rad: float) -> tuple | None:
     return seabed_line(y, z - np.nan_to_num(deeper, nan=0.0))
 
 
-def _beam_width_rad(first: _FirstPass) -> float:
+def _receive_beam_rad(first: _FirstPass) -> float:
     """The receive beam's width of the survey's sonar (rad, NaN: unknown) at its median sound speed."""
     c = first.per_ping["sound_speed"]
     c = float(np.nanmedian(c)) if np.isfinite(c).any() else 1500.0
