@@ -34,12 +34,14 @@ import numpy as np
 #: angle slide of a coherence peak along its arc at broadside (rad) when its SNR is unknown: 0.2 degree measured
 #: on line1 and line4 at the paper's grid, 0.3 on coarser grids (0.25 degree, 0.5 m)
 ARC_SIGMA_RAD = math.radians(0.3)
-#: a peak's angle error at broadside in receive beam widths (``lambda / W``) times ``sqrt(SNR)``: 0.33-0.51
-#: measured on the simulated pipelines (``docs/lines.md``), the Cramer-Rao bound's form for an array
+#: a peak's angle error at broadside in receive beam widths (``lambda / W``) times ``sqrt(SNR)``, the Cramer-Rao
+#: bound's form for an array: the bound is 0.39 (``sqrt(6) / 2 pi``), the simulated pipelines measure 0.17-0.38
+#: against their peaks' SNR (``docs/lines.md``)
 SLIDE_PER_BEAM = 0.5
-#: a peak's angle error at broadside at high SNR (rad): 0.02-0.03 degree measured on clean pipes above 37 dB,
-#: more where a pipe's echo mixes with boulders or smears as it crosses: 0.15 held those lines together
-SLIDE_FLOOR_RAD = math.radians(0.15)
+#: a peak's angle error at broadside at high SNR (rad): 0.01 degree measured on clean pipes above 37 dB, more
+#: where a pipe's echo mixes with boulders or smears as it crosses; at 0.02-0.03 one of Line 4's seven surveys
+#: put A 0.66 m and B 1.42 m off, at 0.05 none more than 0.61 m
+SLIDE_FLOOR_RAD = math.radians(0.05)
 #: spread of the prior on a specular line's ``k`` about 1 (:func:`specular_fit`): the extra depth ``dz`` is
 #: computed from the line's own heading and a prior burial, so ``k`` scatters about 1 (0.6-1.4 measured on Line 4's
 #: far pipes over noise seeds); at 0.5 Line 4's C burial error fell from 1.22 to 0.66 m RMS over seven seeds
@@ -115,9 +117,12 @@ def offplane_deepening_m(range_m, angle_rad, beam_width_rad: float, band_hz=None
     ``R`` seen ``phi`` off the plane along the track images
     ``R phi^2 / (2 cos theta)`` deeper (``z = sqrt(z^2 + x^2)``, ``x = R phi``).
     Seabed scatterers fill the transmit beam, so their peaks lie deeper by
-    the mean of that over the beam: ``phi^2`` averaged over each frequency's
-    main lobe (``MAIN_LOBE_MEAN_SQUARE (lambda / L)^2``) and over a flat band
-    (``lambda^2`` to ``c^2 / (f0 f1)``).  A pipe along the track echoes from
+    the mean of that over the echo energy they return: ``phi^2`` averaged
+    over each frequency's main lobe (``MAIN_LOBE_MEAN_SQUARE (lambda /
+    L)^2``) and over a flat band, each frequency weighted by its lobe's
+    energy (its width, ``lambda / L``): ``lambda^2`` becomes
+    ``c^2 (f0^-2 - f1^-2) / (2 ln(f1 / f0))``, 1.42 times the band's plain
+    mean ``c^2 / (f0 f1)`` at 2-9 kHz.  A pipe along the track echoes from
     the plane and does not.
 
     Parameters
@@ -132,7 +137,8 @@ def offplane_deepening_m(range_m, angle_rad, beam_width_rad: float, band_hz=None
     band_factor = 1.0
     if band_hz is not None and float(band_hz[0]) > 0 and float(band_hz[1]) > 0:
         f0, f1 = float(band_hz[0]), float(band_hz[1])
-        band_factor = (0.5 * (f0 + f1)) ** 2 / (f0 * f1)
+        if f1 > f0:  # lambda^2 weighted by 1 / f over the band, in units of the centre's
+            band_factor = (0.5 * (f0 + f1)) ** 2 * (f0 ** -2 - f1 ** -2) / (2.0 * math.log(f1 / f0))
     mean_square = MAIN_LOBE_MEAN_SQUARE * beam_width_rad ** 2 * band_factor
     cos_t = np.maximum(np.abs(np.cos(np.asarray(angle_rad, dtype=np.float64))), 0.05)
     return np.asarray(range_m, dtype=np.float64) * mean_square / (2.0 * cos_t)

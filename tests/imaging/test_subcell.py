@@ -225,3 +225,27 @@ def test_an_echo_just_past_the_grid_edge_refines_to_itself_not_the_edge():
     rows = Imager(grid, ImagingOptions()).image(ping).peaks
     row, dr, da = refined_near(rows, r, a)
     assert dr < 0.1 and da < 0.1, row
+
+
+@pytest.mark.parametrize("a", [45.3, 70.2])
+@pytest.mark.parametrize("offset", [-0.8, -0.45, 0.3, 0.6, 0.9])
+def test_an_echo_between_the_patch_middle_and_edge_refines_onto_its_maximum(a, offset):
+    """A cell ``offset`` search steps along the arc from a point's echo: the search's nearest point is the
+    cell itself, and the patch about it (half a search step wide) has its maximum on an edge.  Far from nadir
+    the beam is flat (14 degrees wide at 70 degrees) and the peak must still reach the echo's maximum within
+    a tenth of a cell (0.01 degree; 0.1 m of depth at 300 m): left on the patch's edge it stood up to a
+    quarter of a search step off (0.27 degree at 70 degrees)."""
+    from clbeam.imaging.subcell import ANGLE_SEARCH_BEAMS, ANGLE_SEARCH_POINTS, beam_width_rad
+
+    r = 300.1
+    ping = point_ping([polar_point(r, a)], record_s=0.42)
+    grid = grid_for([r], [a])
+    im = Imager(grid, ImagingOptions())
+    inp = im.beamform_input(ping)
+    search_step = np.degrees(2 * ANGLE_SEARCH_BEAMS * beam_width_rad(inp) / np.cos(np.radians(a))) \
+        / (ANGLE_SEARCH_POINTS - 1)
+    ia = int(np.argmin(np.abs(grid.angles_deg - (a + offset * search_step))))
+    cell = np.array([[ia, int(np.argmin(np.abs(grid.ranges_m - r)))]])
+    out = refine_peaks(im.engine, inp, grid, cell, interp_mode("cubic"))
+    assert abs(out.range_m[0] - r) < 0.1 * RANGE_STEP
+    assert abs(out.angle_deg[0] - a) < 0.1 * ANGLE_STEP, (grid.angles_deg[ia] - a, out.angle_deg[0] - a)

@@ -74,7 +74,9 @@ def test_noise_term_bounds_an_arrays_beamformed_peak_from_above(snr_db):
 def test_offplane_deepening_is_the_beams_mean_square_angle_by_numerical_integration():
     """The closed form against a numerical integral: ``phi^2`` over each
     frequency's one-way main lobe ``sinc^2(L sin(phi) / lambda)`` (scipy
-    ``quad``), averaged over a flat 2-9 kHz band; and the geometry it stands
+    ``quad``), averaged over a flat 2-9 kHz band with each frequency weighted
+    by its lobe's energy (a seabed scatterer's echo energy over the beam and
+    the band); and the geometry it stands
     on, ``sqrt(z^2 + x^2) - z`` for a point ``phi`` off the plane."""
     from scipy.integrate import quad
 
@@ -85,7 +87,11 @@ def test_offplane_deepening_is_the_beams_mean_square_angle_by_numerical_integrat
         lobe = math.asin(c / f / length)
         weight = lambda p: np.sinc(length * math.sin(p) * f / c) ** 2  # noqa: E731
         return quad(lambda p: p * p * weight(p), -lobe, lobe)[0] / quad(weight, -lobe, lobe)[0]
-    band_mean = quad(mean_square, *band, limit=200)[0] / (band[1] - band[0])
+    def lobe_energy(f):
+        lobe = math.asin(c / f / length)
+        return quad(lambda p: np.sinc(length * math.sin(p) * f / c) ** 2, -lobe, lobe)[0]
+    band_mean = (quad(lambda f: mean_square(f) * lobe_energy(f), *band, limit=200)[0]
+                 / quad(lobe_energy, *band, limit=200)[0])
     for r, theta in ((300.0, 0.7), (650.0, 1.2), (950.0, 1.33)):
         expected = r * band_mean / (2 * math.cos(theta))
         assert offplane_deepening_m(r, theta, beam, band) == pytest.approx(expected, rel=0.02)

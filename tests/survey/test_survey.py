@@ -240,8 +240,8 @@ def test_each_detections_slide_follows_its_snr_and_the_sonar(reference, tmp_path
     """The line search gets each detection's slide along its arc from its
     SNR in the ledger, the sonar's band and width and the grid's step: the
     closed form ``sqrt((0.5 c / f_c / W)^2 / SNR + floor^2)`` recomputed here
-    from the peaks table (floor 0.15 degree: the 0.25 degree grid's 0.3
-    steps are less)."""
+    from the peaks table (floor 0.3 steps of the 0.25 degree grid: more
+    than the fixed 0.05 degree)."""
     import csv
 
     import clbeam.survey.products as products_module
@@ -261,7 +261,7 @@ def test_each_detections_slide_follows_its_snr_and_the_sonar(reference, tmp_path
     snr = np.array([float(r["snr_db"]) for r in rows])
     attrs = xr.open_zarr(out).attrs
     beam = 1500.0 / np.mean(attrs["pulse_band_hz"]) / attrs["array_width_m"]
-    expected = np.hypot(0.5 * beam / np.sqrt(10 ** (snr / 10)), math.radians(0.15))
+    expected = np.hypot(0.5 * beam / np.sqrt(10 ** (snr / 10)), 0.3 * math.radians(0.25))
     det = seen["det"]
     assert det.ping.size == len(rows) > 20
     assert np.allclose(det.y, [float(r["y_m"]) for r in rows]) and np.all(np.isfinite(snr))
