@@ -320,7 +320,9 @@ def _arc_polish(evaluate, along, r, a, step_a):
     aa = a[:, None] + np.array([-1.0, 0.0, 1.0]) * step_a[:, None]
     values = evaluate(along(np.broadcast_to(r[:, None], aa.shape), a[:, None], aa), aa).intensity
     d = _log_parabola_shift(values[:, 0], values[:, 1], values[:, 2])
-    a2 = a + np.nan_to_num(d) * step_a
+    # not concave (the three rise one way): the best of them
+    d = np.where(np.isfinite(d), d, np.argmax(values, axis=1) - 1.0)
+    a2 = a + d * step_a
     return along(r, a, a2), a2
 
 
@@ -336,7 +338,8 @@ def _log_parabola_shift(lo, mid, hi):
 
 def _parabolic_peak(values, rr, aa, step_r, step_a):
     """The maximum of each ``(n, P, P)`` patch moved by a parabola along each axis through the three points
-    about it (the patch's middle three where it lies on the edge), at most one step from their middle.
+    about it along its row and column (where it lies on the patch's edge, the three nearest that edge: the
+    middle three of a 3-point patch), at most one step from their middle.
 
     Where the maximum lies on the patch's edge the echo's peak lies between it and the middle (the search's
     window puts it within a step of the middle): far from nadir the beam is so flat along the arc that a

@@ -136,7 +136,7 @@ def offplane_deepening_m(range_m, angle_rad, beam_width_rad: float, band_hz=None
     """
     band_factor = 1.0
     if band_hz is not None and float(band_hz[0]) > 0 and float(band_hz[1]) > 0:
-        f0, f1 = float(band_hz[0]), float(band_hz[1])
+        f0, f1 = sorted((float(band_hz[0]), float(band_hz[1])))
         if f1 > f0:  # lambda^2 weighted by 1 / f over the band, in units of the centre's
             band_factor = (0.5 * (f0 + f1)) ** 2 * (f0 ** -2 - f1 ** -2) / (2.0 * math.log(f1 / f0))
     mean_square = MAIN_LOBE_MEAN_SQUARE * beam_width_rad ** 2 * band_factor

@@ -433,9 +433,11 @@ def line_kind(burial_m: float, burial_error_m: float, nadir_angle_deg: float, op
     the pipelines' range ``min_burial_m``-``max_burial_m``, and is judged by
     its estimate otherwise.  Resolved, the reach shrinks with the standard
     error, ``3 se * se / burial_resolution_m`` (0.9 m at 0.39 m, 0.06 m at
-    0.1 m; no jump at the resolution): a pipe 1 m deep 600 m out, its burial
-    known to 0.3-0.4 m, otherwise comes out ``seabed`` one survey in ten.
-    Within the reach: ``pipeline``; within ``nadir_angle_deg`` of nadir and not buried:
+    0.1 m; no jump at the resolution): without it a pipe 1 m deep 600 m
+    out, its burial known to 0.3-0.4 m, came out ``seabed`` in one of Line
+    1's five surveys.  No reach within ``nadir_angle_deg`` of nadir, nor
+    for a burial without a standard error (NaN).  Within the reach:
+    ``pipeline``; within ``nadir_angle_deg`` of nadir and not buried:
     ``seabed-nadir`` (the seabed's specular echo and its pulse's tail),
     deeper than ``max_burial_m``: ``subbottom-nadir`` (a horizon's); else
     ``seabed`` (within ``min_burial_m`` of it), ``water`` (above it),
@@ -445,7 +447,7 @@ def line_kind(burial_m: float, burial_error_m: float, nadir_angle_deg: float, op
     if not math.isfinite(burial_m):
         return "unknown"
     nadir = nadir_angle_deg <= options.nadir_angle_deg
-    se = burial_error_m if math.isfinite(burial_error_m) else 0.0  # no error: judged by the estimate
+    se = 0.0 if math.isnan(burial_error_m) else burial_error_m  # no error: judged by the estimate
     reach = 0.0 if nadir else 3 * se * min(1.0, se / options.burial_resolution_m)
     if options.min_burial_m - reach <= burial_m <= options.max_burial_m + reach:
         return "pipeline"

@@ -230,11 +230,12 @@ def test_an_echo_just_past_the_grid_edge_refines_to_itself_not_the_edge():
 @pytest.mark.parametrize("a", [45.3, 70.2])
 @pytest.mark.parametrize("offset", [-0.8, -0.45, 0.3, 0.6, 0.9])
 def test_an_echo_between_the_patch_middle_and_edge_refines_onto_its_maximum(a, offset):
-    """A cell ``offset`` search steps along the arc from a point's echo: the search's nearest point is the
-    cell itself, and the patch about it (half a search step wide) has its maximum on an edge.  Far from nadir
-    the beam is flat (14 degrees wide at 70 degrees) and the peak must still reach the echo's maximum within
-    a tenth of a cell (0.01 degree; 0.1 m of depth at 300 m): left on the patch's edge it stood up to a
-    quarter of a search step off (0.27 degree at 70 degrees)."""
+    """A cell ``offset`` search steps along the arc from a point's echo (snapped to the grid): where the
+    search's nearest point lies more than a quarter of a search step from the echo, the patch about it (half a
+    search step wide) has its maximum on an edge (half of these cases).  Far from nadir the beam is flat
+    (14 degrees wide at 70 degrees) and the peak must still reach the echo's maximum within a tenth of a cell
+    (0.01 degree; 0.1 m of depth at 300 m): left on the patch's edge it stood up to a quarter of a search step
+    off (about a quarter of a degree at 70 degrees)."""
     from clbeam.imaging.subcell import ANGLE_SEARCH_BEAMS, ANGLE_SEARCH_POINTS, beam_width_rad
 
     r = 300.1
@@ -249,3 +250,35 @@ def test_an_echo_between_the_patch_middle_and_edge_refines_onto_its_maximum(a, o
     out = refine_peaks(im.engine, inp, grid, cell, interp_mode("cubic"))
     assert abs(out.range_m[0] - r) < 0.1 * RANGE_STEP
     assert abs(out.angle_deg[0] - a) < 0.1 * ANGLE_STEP, (grid.angles_deg[ia] - a, out.angle_deg[0] - a)
+
+
+def test_the_last_parabola_reaches_a_lopsided_lobes_maximum_and_climbs_where_it_is_not_concave():
+    """The arc's last parabola on a lobe that is not a parabola in log (a Gaussian with a cubic skew, as
+    noise leaves a flat far lobe): from 0.03 degree off, within 0.002 degree of its maximum found by a dense
+    scan; where the three points rise one way (no vertex), it moves to the highest of them."""
+    from types import SimpleNamespace
+
+    from clbeam.imaging.subcell import _arc_polish
+
+    def lobe(a):
+        u = np.asarray(a, dtype=np.float64) - 70.0
+        return np.exp(-(u / 6.0) ** 2 * np.log(2) + 0.004 * u ** 3)
+
+    def evaluate(r, a):
+        return SimpleNamespace(intensity=lobe(a))
+
+    def along(r, a0, a):
+        return np.broadcast_to(r, np.shape(a)).copy()
+
+    scan = np.linspace(69.0, 71.0, 200001)
+    best = scan[np.argmax(lobe(scan))]
+    start = np.array([best + 0.03, best - 0.03])
+    r, a = _arc_polish(evaluate, along, np.full(2, 600.0), start, np.full(2, 0.125))
+    assert np.all(np.abs(a - best) < 0.002), (a - best, best)
+    assert np.all(r == 600.0)
+    # a log-convex rise (no vertex between the three): the highest of them, one step on
+    def rising(r, a):
+        return SimpleNamespace(intensity=np.exp(2.0 * (np.asarray(a) - 70.0) ** 2))
+    start = np.array([70.5, 69.5])
+    moved = _arc_polish(rising, along, np.full(2, 600.0), start, np.full(2, 0.125))[1]
+    assert moved == pytest.approx([70.625, 69.375])

@@ -223,7 +223,7 @@ def test_bad_line_options_are_refused_in_one_line(kwargs):
     # resolved: a reach of 3 se^2 / 0.5 m below 0.5 m (0.91 m at 0.39 m, 0.24 m at 0.2 m), none at nadir
     (0.47, 0.39, 70.0, "pipeline"), (-0.40, 0.39, 70.0, "pipeline"), (-0.42, 0.39, 70.0, "seabed"),
     (0.27, 0.2, 60.0, "pipeline"), (0.25, 0.2, 60.0, "seabed"), (0.47, 0.39, 3.0, "seabed-nadir"),
-    (1.0, math.nan, 40.0, "pipeline"), (0.3, math.nan, 40.0, "seabed")])
+    (1.0, math.nan, 40.0, "pipeline"), (0.3, math.nan, 40.0, "seabed"), (-5.0, math.inf, 70.0, "pipeline")])
 def test_line_kind_follows_burial_its_error_and_nadir(burial, error, angle, kind):
     assert line_kind(burial, error, angle, LineOptions()) == kind
 

@@ -95,6 +95,7 @@ def test_offplane_deepening_is_the_beams_mean_square_angle_by_numerical_integrat
     for r, theta in ((300.0, 0.7), (650.0, 1.2), (950.0, 1.33)):
         expected = r * band_mean / (2 * math.cos(theta))
         assert offplane_deepening_m(r, theta, beam, band) == pytest.approx(expected, rel=0.02)
+        assert offplane_deepening_m(r, theta, beam, band[::-1]) == offplane_deepening_m(r, theta, beam, band)
     # the image of a point phi off the plane: range kept, cone angle kept, so depth sqrt(z^2 + x^2)
     r, theta, phi = 650.0, 1.2, 0.03
     x, z = r * math.sin(phi), r * math.cos(phi) * math.cos(theta)
