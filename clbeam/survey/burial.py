@@ -287,9 +287,31 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
     -------
     dict
         ``k``, ``k_error``, ``burial_m``, ``burial_error_m`` (the fit's
-        intercept and its standard error) and ``y_crossing_m`` (``(n,)``:
-        the offsets moved back to the plane, ``y_c``, as if specular).
+        intercept and its standard error), ``y_crossing_m`` (``(n,)``:
+        the offsets moved back to the plane, ``y_c``, as if specular),
+        ``extra_depth_m`` (the mean ``dz`` over the detections with a
+        burial, m) and ``offplane_rad`` (the median angle ``x / R`` at
+        which the source would see the nearest point, rad).
     """
+    yc, x_off, r, dz = _nearest_point(y_m, slope, centre_yz_m, seabed, prior_burial_m)
+    b = np.asarray(burial_m, dtype=np.float64)
+    ok = np.isfinite(b) & np.isfinite(sigma_m)
+    out = {"k": np.nan, "k_error": np.nan, "burial_m": np.nan, "burial_error_m": np.nan, "y_crossing_m": yc,
+           "extra_depth_m": float(np.mean(dz[ok])) if ok.any() else np.nan,
+           "offplane_rad": float(np.median(np.abs(x_off[ok]) / r[ok])) if ok.any() else np.nan}
+    if (ok.sum() < 3 or np.ptp(dz[ok]) <= 0) if k_prior_sigma is None else not ok.any():  # free k: 3 over dz
+        return out
+    w = 1 / np.maximum(np.asarray(sigma_m, dtype=np.float64)[ok], 0.3) ** 2
+    coef, cov = _intercept_and_k(dz[ok], b[ok], w, k_prior_sigma)
+    out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(np.sqrt(cov[0, 0])),
+               k_error=float(np.sqrt(cov[1, 1])))
+    return out
+
+
+def _nearest_point(y_m, slope, centre_yz_m, seabed, prior_burial_m: float) -> tuple:
+    """For :func:`specular_fit`: the crossings ``y_c`` (m), the nearest points' distances ``x`` off the plane
+    (m), the crossings' slant ranges (m) and the extra depths ``dz`` (m) of a straight pipe at ``dy/ds =
+    slope`` with its echoes at ``y_m``."""
     y = np.asarray(y_m, dtype=np.float64)
     c = np.asarray(centre_yz_m, dtype=np.float64).reshape(-1, 2)
     sb = np.asarray(seabed, dtype=np.float64).reshape(-1, 2)
@@ -298,17 +320,7 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
     yc = (y - c[:, 0]) / cos_a + c[:, 0]
     x_off = (yc - c[:, 0]) * sin_a * cos_a
     z = sb[:, 0] + sb[:, 1] * yc + prior_burial_m - c[:, 1]
-    dz = np.sqrt(z ** 2 + x_off ** 2) - z
-    out = {"k": np.nan, "k_error": np.nan, "burial_m": np.nan, "burial_error_m": np.nan, "y_crossing_m": yc}
-    b = np.asarray(burial_m, dtype=np.float64)
-    ok = np.isfinite(b) & np.isfinite(sigma_m)
-    if (ok.sum() < 3 or np.ptp(dz[ok]) <= 0) if k_prior_sigma is None else not ok.any():  # free k: 3 over dz
-        return out
-    w = 1 / np.maximum(np.asarray(sigma_m, dtype=np.float64)[ok], 0.3) ** 2
-    coef, cov = _intercept_and_k(dz[ok], b[ok], w, k_prior_sigma)
-    out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(np.sqrt(cov[0, 0])),
-               k_error=float(np.sqrt(cov[1, 1])))
-    return out
+    return yc, x_off, np.hypot(yc - c[:, 0], z), np.sqrt(z ** 2 + x_off ** 2) - z
 
 
 def _intercept_and_k(dz: np.ndarray, b: np.ndarray, w: np.ndarray, k_prior_sigma: float | None) -> tuple:

@@ -244,6 +244,9 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = rank(tr)
     spec = _specular(frame, tr, path_y, sb, centre_yz, level, options)
+    if spec is not None and spec["path_y"] is None:  # smooth or rough, undecided: the burial halfway
+        burial, burial_se = burial + spec["burial_shift_m"], math.hypot(burial_se, spec["burial_extra_error_m"])
+        spec = None
     if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
         path_y = spec["path_y"]
         if math.isfinite(spec["burial_m"]):
@@ -330,12 +333,26 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     moved = np.isfinite(frame.b[m])
     fades = _fades(frame, m[moved], slope[k[moved]], centre_yz[g[moved], 0], level, options)
     if moved.sum() < 3 or not (by_burial or (fades and not not_specular)):
-        return None
+        return None if not_specular else _undecided(fit, options)
     y_c = specular_crossing(frame.y[m][moved], frame.s[m][moved], centre_yz[g[moved], 0], s_ext, options.fit_length_m)
     # specular, whatever the free fit's k: the burial with k drawn towards the geometry's 1
     fit = specular_fit(frame.y[m], frame.b[m], frame.b_sigma[m], slope[k], centre_yz[g], sb[g],
                        k_prior_sigma=SPECULAR_K_SIGMA)
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
+
+
+def _undecided(fit: dict, options: LineOptions) -> dict | None:
+    """A line neither test calls specular nor diffuse (a steady heading: no spread of the extra depth, no
+    fading), whose nearest point, were it smooth, would lie inside the transmit beam's main lobe (within
+    ``beam_width_deg``, ``lambda / L`` at the band's centre: its first null) and so be seen: a smooth pipe's
+    echo would lie ``dz`` deeper than the pipe, a rough one's at it.  Its burial is taken halfway, ``dz / 2``
+    shallower than measured, with ``dz / sqrt(12)`` (a uniform spread over the two) added to its standard
+    error (``burial_shift_m``, ``burial_extra_error_m``); ``None`` where a smooth pipe's nearest point would
+    lie outside the main lobe (a rough pipe, seen only for its diffuse echo) or there is no extra depth."""
+    dz, off = fit.get("extra_depth_m", math.nan), fit.get("offplane_rad", math.nan)
+    if not (dz > 0 and off < math.radians(options.beam_width_deg)):
+        return None
+    return {"path_y": None, "burial_shift_m": -0.5 * dz, "burial_extra_error_m": dz / math.sqrt(12.0)}
 
 
 def _fades(frame: TrackFrame, members: np.ndarray, sin_a: np.ndarray, centre_y: np.ndarray,

@@ -173,3 +173,61 @@ def test_fading_verdict_needs_a_beams_fall_not_just_a_significant_one():
     assert not _fades(frame, members, sin_a, np.zeros(n), slow, narrow)
     assert _fades(frame, members, sin_a, np.zeros(n), slow, wide)
     assert not _fades(frame, members, sin_a, np.zeros(n), None, narrow)
+
+
+def _steady_pipe(heading_deg: float, smooth: bool, seed: int = 5):
+    """40 pings of a straight pipe 1 m under a flat seabed 225 m down, crossing the planes 553 m to port at a
+    steady ``heading_deg`` to the track, its echoes at a steady level (no fading) with clutter: a smooth
+    pipe's where the imager shows its nearest point (``y_c cos^2 a`` across, ``sqrt(z^2 + x^2)`` down,
+    ``x = y_c sin a cos a`` off the plane), a rough pipe's at the crossing.  The line and the extra depth
+    ``dz = sqrt(z^2 + x^2) - z`` at the pipe's mean crossing."""
+    rng = np.random.default_rng(seed)
+    n, z_pipe, a = 40, 226.0, np.radians(heading_deg)
+    s = np.arange(n) * SPACING_M
+    crossing = -553.0 - s * np.tan(a)
+    x = crossing * np.sin(a) * np.cos(a)
+    echo_y = crossing * np.cos(a) ** 2 if smooth else crossing
+    echo_z = np.hypot(z_pipe, x) if smooth else np.full(n, z_pipe)
+    ping, y, depth, cf, inten = [], [], [], [], []
+    for k in range(n):
+        clutter = rng.uniform(-700, 700, 6)
+        ping += [k] * 7
+        y += [echo_y[k] + rng.normal(0, 0.1)] + list(clutter)
+        depth += [echo_z[k] + rng.normal(0, 0.05)] + list(225 + rng.uniform(0, 25, 6))
+        cf += [0.6] + list(rng.uniform(0.4, 0.6, 6))
+        inten += [-140.0 + rng.normal(0, 1.0)] + list(rng.uniform(-170, -150, 6))
+    det = LineDetections(*(np.asarray(v, dtype=np.float64) for v in (ping, y, depth, cf, inten)))
+    det.ping = det.ping.astype(np.int64)
+    det.slide_rad = np.full(det.ping.size, np.radians(0.01))  # strong peaks: their burials good to centimetres
+    nav = SurveyNavigation(n, None)
+    imaged = np.ones(n, dtype=bool)
+    nav.finish(imaged)
+    lines = survey_lines(det, np.tile([225.0, 0.0], (n, 1)), np.zeros((n, 2)), imaged, nav, LineOptions())
+    rows = [r for r, path in zip(lines.rows, lines.ping_paths) if np.all(np.abs(path[1] - crossing[path[0]]) < 20)]
+    x_mean = np.mean(crossing) * np.sin(a) * np.cos(a)
+    return rows, float(np.hypot(z_pipe, x_mean) - z_pipe)
+
+
+@pytest.mark.parametrize("smooth", [True, False])
+def test_a_pipe_at_a_steady_small_heading_neither_test_can_call_gets_its_burial_halfway(smooth):
+    """At 2 degrees a smooth pipe's nearest point lies 19 m off the plane, inside the 4.5 degree transmit
+    beam: its echo images dz = 0.8 m deeper than the pipe, a rough pipe's at it, and with no spread of dz
+    and no fading neither test tells them apart.  The burial is reported halfway, 1 + dz/2 measured from a
+    smooth pipe's echoes and 1 - dz/2 from a rough one's (within 0.5 m of the truth either way, against
+    1.8 m for a smooth one reported as measured), with dz / sqrt(12) in its standard error."""
+    rows, dz = _steady_pipe(2.0, smooth)
+    assert len(rows) == 1 and rows[0]["specular"] == 0
+    assert 0.7 < dz < 0.9
+    expected = 1.0 + (0.5 if smooth else -0.5) * dz
+    assert rows[0]["burial_m"] == pytest.approx(expected, abs=0.06)
+    assert 0.9 * dz / np.sqrt(12) <= rows[0]["burial_error_m"] < dz / np.sqrt(12) + 0.1
+
+
+@pytest.mark.parametrize("heading_deg", [0.0, 40.0])
+def test_a_rough_pipe_along_the_track_or_far_across_it_keeps_its_measured_burial(heading_deg):
+    """Along the track there is no extra depth; at 40 degrees a smooth pipe's nearest point would lie 270 m
+    off the plane, far outside the transmit beam, so the pipe seen must be rough: no halfway burial."""
+    rows, dz = _steady_pipe(heading_deg, smooth=False)
+    assert len(rows) == 1
+    assert rows[0]["burial_m"] == pytest.approx(1.0, abs=0.06)
+    assert rows[0]["burial_error_m"] < 0.2
