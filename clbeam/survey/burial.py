@@ -290,18 +290,18 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
         intercept and its standard error), ``y_crossing_m`` (``(n,)``:
         the offsets moved back to the plane, ``y_c``, as if specular),
         ``extra_depth_m`` (the mean ``dz`` over the detections with a
-        burial, m) and ``offplane_rad`` (the median angle ``x / R`` at
+        burial, weighted as the fit, m) and ``offplane_rad`` (the median angle ``x / R`` at
         which the source would see the nearest point, rad).
     """
     yc, x_off, r, dz = _nearest_point(y_m, slope, centre_yz_m, seabed, prior_burial_m)
     b = np.asarray(burial_m, dtype=np.float64)
     ok = np.isfinite(b) & np.isfinite(sigma_m)
+    w = 1 / np.maximum(np.asarray(sigma_m, dtype=np.float64)[ok], 0.3) ** 2
     out = {"k": np.nan, "k_error": np.nan, "burial_m": np.nan, "burial_error_m": np.nan, "y_crossing_m": yc,
-           "extra_depth_m": float(np.mean(dz[ok])) if ok.any() else np.nan,
+           "extra_depth_m": float(np.average(dz[ok], weights=w)) if ok.any() else np.nan,
            "offplane_rad": float(np.median(np.abs(x_off[ok]) / r[ok])) if ok.any() else np.nan}
     if (ok.sum() < 3 or np.ptp(dz[ok]) <= 0) if k_prior_sigma is None else not ok.any():  # free k: 3 over dz
         return out
-    w = 1 / np.maximum(np.asarray(sigma_m, dtype=np.float64)[ok], 0.3) ** 2
     coef, cov = _intercept_and_k(dz[ok], b[ok], w, k_prior_sigma)
     out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(np.sqrt(cov[0, 0])),
                k_error=float(np.sqrt(cov[1, 1])))

@@ -47,11 +47,15 @@ class LineOptions:
         Lines within this angle of nadir (median over their pings) are nadir echoes
         (kinds ``seabed-nadir``, ``subbottom-nadir``).
     beam_width_deg : float
-        Along-track width of the transmit beam (degree; the SBP29's 3.5 m
-        column at the 2-9 kHz band's centre: about 4.5): a line crossing the
-        track is seen over that stretch, smeared across each ping; and each
-        ping's seabed is fitted to its peaks raised by the depth echoes from
-        across that beam add (:func:`clbeam.survey.burial.offplane_deepening_m`).
+        Along-track width of the transmit beam, ``lambda / L`` at the band's
+        centre (degree; the SBP29's 3.5 m column at the 2-9 kHz band's
+        centre: about 4.5; the main lobe's first null, half of it about its
+        -4 dB point): a line crossing the track is seen over half of it either
+        side, smeared across each ping; each ping's seabed is fitted to its
+        peaks raised by the depth echoes from across the beam add
+        (:func:`clbeam.survey.burial.offplane_deepening_m`); a line at a steady
+        heading whose nearest point, were it a smooth pipe, would lie within
+        half of it gets its burial halfway between a smooth and a rough pipe's.
     nominal_spacing_m : float
         Along-track distance between pings assumed when a survey has neither
         navigation nor ping times and a ship speed (m; the paper's 4 kn at

@@ -244,8 +244,12 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = rank(tr)
     spec = _specular(frame, tr, path_y, sb, centre_yz, level, options)
-    if spec is not None and spec["path_y"] is None:  # smooth or rough, undecided: the burial halfway
-        burial, burial_se = burial + spec["burial_shift_m"], math.hypot(burial_se, spec["burial_extra_error_m"])
+    kind_burial = (burial, burial_se)
+    if spec is not None and spec["path_y"] is None:
+        # smooth or rough, undecided: a buried line's burial halfway, its kind from the burial as measured (a
+        # smooth pipe's echo never lies above the seabed: a line at or above it is left as it is)
+        if options.min_burial_m <= burial <= options.max_burial_m:
+            burial, burial_se = burial + spec["burial_shift_m"], math.hypot(burial_se, spec["burial_extra_error_m"])
         spec = None
     if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
         path_y = spec["path_y"]
@@ -256,7 +260,8 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))
     seabed_known = bool(np.isfinite(angle).any())  # pings without a seabed have no depth for the line
     nadir_angle = float(np.nanmedian(np.abs(angle))) if seabed_known else math.nan
-    row = {"kind": line_kind(burial, burial_se, nadir_angle, options),
+    row = {"kind": line_kind(*kind_burial, nadir_angle, options) if spec is None else
+           line_kind(burial, burial_se, nadir_angle, options),
            "n_pings": int(m.size), "first_ping": int(ext[0]), "last_ping": int(ext[-1]),
            "mean_cf": float(np.mean(frame.cf[m])), "score": float(score),
            "burial_m": burial, "burial_std_m": spread, "burial_error_m": burial_se, "burial_resolved": int(resolved),
@@ -343,14 +348,15 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
 
 def _undecided(fit: dict, options: LineOptions) -> dict | None:
     """A line neither test calls specular nor diffuse (a steady heading: no spread of the extra depth, no
-    fading), whose nearest point, were it smooth, would lie inside the transmit beam's main lobe (within
-    ``beam_width_deg``, ``lambda / L`` at the band's centre: its first null) and so be seen: a smooth pipe's
-    echo would lie ``dz`` deeper than the pipe, a rough one's at it.  Its burial is taken halfway, ``dz / 2``
-    shallower than measured, with ``dz / sqrt(12)`` (a uniform spread over the two) added to its standard
-    error (``burial_shift_m``, ``burial_extra_error_m``); ``None`` where a smooth pipe's nearest point would
-    lie outside the main lobe (a rough pipe, seen only for its diffuse echo) or there is no extra depth."""
+    fading), whose nearest point, were it smooth, would lie inside the transmit beam (within half of
+    ``beam_width_deg``, ``lambda / L`` at the band's centre: about the main lobe's -4 dB point) and so be seen
+    as well as a rough pipe's crossing: a smooth pipe's echo would lie ``dz`` deeper than the pipe, a rough
+    one's at it.  Its burial is taken halfway, ``dz / 2`` shallower than measured, with ``dz / sqrt(12)`` (a
+    uniform spread over the two) added to its standard error (``burial_shift_m``, ``burial_extra_error_m``);
+    ``None`` where a smooth pipe's nearest point would lie further off the plane (its echo weaker than a rough
+    pipe's: taken as rough) or there is no extra depth."""
     dz, off = fit.get("extra_depth_m", math.nan), fit.get("offplane_rad", math.nan)
-    if not (dz > 0 and off < math.radians(options.beam_width_deg)):
+    if not (dz > 0 and off < 0.5 * math.radians(options.beam_width_deg)):
         return None
     return {"path_y": None, "burial_shift_m": -0.5 * dz, "burial_extra_error_m": dz / math.sqrt(12.0)}
 

@@ -175,14 +175,14 @@ def test_fading_verdict_needs_a_beams_fall_not_just_a_significant_one():
     assert not _fades(frame, members, sin_a, np.zeros(n), None, narrow)
 
 
-def _steady_pipe(heading_deg: float, smooth: bool, seed: int = 5):
+def _steady_pipe(heading_deg: float, smooth: bool, seed: int = 5, z_pipe: float = 226.0):
     """40 pings of a straight pipe 1 m under a flat seabed 225 m down, crossing the planes 553 m to port at a
     steady ``heading_deg`` to the track, its echoes at a steady level (no fading) with clutter: a smooth
     pipe's where the imager shows its nearest point (``y_c cos^2 a`` across, ``sqrt(z^2 + x^2)`` down,
     ``x = y_c sin a cos a`` off the plane), a rough pipe's at the crossing.  The line and the extra depth
     ``dz = sqrt(z^2 + x^2) - z`` at the pipe's mean crossing."""
     rng = np.random.default_rng(seed)
-    n, z_pipe, a = 40, 226.0, np.radians(heading_deg)
+    n, a = 40, np.radians(heading_deg)
     s = np.arange(n) * SPACING_M
     crossing = -553.0 - s * np.tan(a)
     x = crossing * np.sin(a) * np.cos(a)
@@ -225,9 +225,37 @@ def test_a_pipe_at_a_steady_small_heading_neither_test_can_call_gets_its_burial_
 
 @pytest.mark.parametrize("heading_deg", [0.0, 40.0])
 def test_a_rough_pipe_along_the_track_or_far_across_it_keeps_its_measured_burial(heading_deg):
-    """Along the track there is no extra depth; at 40 degrees a smooth pipe's nearest point would lie 270 m
-    off the plane, far outside the transmit beam, so the pipe seen must be rough: no halfway burial."""
+    """Along the track there is no extra depth; at 40 degrees a smooth pipe's echo would lie 127 m deeper,
+    by an amount that changes along the line, and the burials' fit puts k well below 1: rough, no halfway
+    burial."""
     rows, dz = _steady_pipe(heading_deg, smooth=False)
     assert len(rows) == 1
     assert rows[0]["burial_m"] == pytest.approx(1.0, abs=0.06)
     assert rows[0]["burial_error_m"] < 0.2
+
+
+def test_a_seabed_chain_at_a_steady_heading_stays_a_seabed_line():
+    """Scatterers on the seabed lined up at 3 degrees to the track: undecided like a pipe at that heading,
+    but a smooth pipe's echo never lies at or above the seabed, so the line keeps its burial of 0 and its
+    kind (halfway it would read -0.9 +- 0.5 m, a pipeline by its error's reach)."""
+    rows, dz = _steady_pipe(3.0, smooth=False, z_pipe=225.0)
+    assert len(rows) == 1 and dz > 1.5
+    assert rows[0]["kind"] == "seabed"
+    assert rows[0]["burial_m"] == pytest.approx(0.0, abs=0.06)
+
+
+def test_the_halfway_burial_needs_a_smooth_pipes_nearest_point_inside_the_beam():
+    """The gate on the angle off the plane at which a smooth pipe's nearest point would lie: inside half the
+    beam width (4.5 degrees: 0.039 rad) the burial moves by dz / 2 with dz / sqrt(12) more error, beyond it
+    and without extra depth it does not."""
+    from clbeam.survey.line_products import _undecided
+
+    half = 0.5 * np.radians(LineOptions().beam_width_deg)
+    inside = _undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, LineOptions())
+    assert inside["burial_shift_m"] == pytest.approx(-0.4) and inside["burial_extra_error_m"] == pytest.approx(
+        0.8 / np.sqrt(12))
+    assert _undecided({"extra_depth_m": 0.8, "offplane_rad": 1.05 * half}, LineOptions()) is None
+    assert _undecided({"extra_depth_m": 0.0, "offplane_rad": 0.0}, LineOptions()) is None
+    assert _undecided({"extra_depth_m": np.nan, "offplane_rad": np.nan}, LineOptions()) is None
+    narrow = LineOptions(beam_width_deg=2.0)
+    assert _undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, narrow) is None
