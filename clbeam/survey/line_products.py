@@ -188,8 +188,8 @@ def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions
     peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near 1)."""
     def better(i):
         members = described[i][0].members
-        loudness = float(np.mean(level[members])) if level is not None and members.size else 0.0
-        return -described[i][1]["score"], -loudness
+        loud = level[members][np.isfinite(level[members])] if level is not None else np.zeros(0)
+        return -described[i][1]["score"], -(float(np.mean(loud)) if loud.size else -np.inf)
     order = sorted(range(len(described)), key=better)
     gates = [effective_gates(frame, d[0], d[2][1], options)[0] for d in described]
     kept = []
