@@ -252,10 +252,10 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = rank(tr)
     spec = _specular(frame, tr, path_y, sb, centre_yz, level, options)
-    kind_burial = (burial, burial_se)
+    measured = (burial, burial_se)  # what the kind is judged by unless the line is specular
     if spec is not None and spec["path_y"] is None:
-        # smooth or rough, undecided: a buried line's burial halfway, its kind from the burial as measured (a
-        # smooth pipe's echo never lies above the seabed: a line at or above it is left as it is)
+        # smooth or rough, undecided: a buried line's burial halfway (a smooth pipe's echo never lies above the
+        # seabed: a line at or above it is left as it is)
         if options.min_burial_m <= burial <= options.max_burial_m:
             burial, burial_se = burial + spec["burial_shift_m"], math.hypot(burial_se, spec["burial_extra_error_m"])
         spec = None
@@ -268,8 +268,7 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))
     seabed_known = bool(np.isfinite(angle).any())  # pings without a seabed have no depth for the line
     nadir_angle = float(np.nanmedian(np.abs(angle))) if seabed_known else math.nan
-    row = {"kind": line_kind(*kind_burial, nadir_angle, options) if spec is None else
-           line_kind(burial, burial_se, nadir_angle, options),
+    row = {"kind": line_kind(*(measured if spec is None else (burial, burial_se)), nadir_angle, options),
            "n_pings": int(m.size), "first_ping": int(ext[0]), "last_ping": int(ext[-1]),
            "mean_cf": float(np.mean(frame.cf[m])), "score": float(score),
            "burial_m": burial, "burial_std_m": spread, "burial_error_m": burial_se, "burial_resolved": int(resolved),
