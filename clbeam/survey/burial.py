@@ -250,20 +250,17 @@ def arc_constrained(y_m, z_m, centre_yz_m, seabed: tuple[float, float], *, prior
 
 
 def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_burial_m: float = 1.0,
-                 k_prior_sigma: float | None = None) -> dict:
+                 k_prior_sigma: float | None = None, max_offplane_rad: float | None = None) -> dict:
     """Whether a line's echoes are a smooth pipe's specular echo, migrated off the ping's plane.
 
-    A straight pipe crossing the ping's plane at ``y_c`` at an angle ``a``
-    to the track returns its echo from its point nearest the source, at
-    ``x = y_c sin a cos a`` off the plane (offsets from the grid centre);
-    the imager shows it at that range and cone angle, ``y_c cos^2 a``
-    across and ``dz = sqrt(z^2 + x^2) - z`` deeper than the pipe.  Moved
-    along its arc to the pipe's depth (:func:`arc_constrained`) it lands at
-    ``y_c cos a``, so along the line ``dy/ds = sin a``.  A rough pipe's
-    diffuse echo comes from the plane itself: ``y_c``, no extra depth,
-    ``dy/ds = tan a``.  The measured burials ``b_i`` tell them apart: fitted
-    as ``b + k dz_i`` (weights ``1 / sigma^2``), ``k`` near 1 is the
-    specular echo, near 0 the diffuse one.
+    A straight pipe crossing the ping's plane at ``y_c`` at an angle ``a`` to the track returns its echo
+    from its point nearest the source, ``x = y_c sin a cos a`` off the plane (offsets from the grid
+    centre); the imager shows it at that range and cone angle, ``y_c cos^2 a`` across and
+    ``dz = sqrt(z^2 + x^2) - z`` deeper than the pipe.  Moved along its arc to the pipe's depth
+    (:func:`arc_constrained`) it lands at ``y_c cos a``, so along the line ``dy/ds = sin a``.  A rough
+    pipe's diffuse echo comes from the plane itself: ``y_c``, no extra depth, ``dy/ds = tan a``.  The
+    measured burials ``b_i`` tell them apart: fitted as ``b + k dz_i`` (weights ``1 / sigma^2``), ``k``
+    near 1 is the specular echo, near 0 the diffuse one.
 
     Parameters
     ----------
@@ -282,6 +279,11 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
         With it, ``k`` is drawn towards 1, a specular echo's, by a Gaussian
         prior of that standard deviation (:data:`SPECULAR_K_SIGMA`: for the
         burial of a line known to be specular); ``None``: ``k`` is free.
+    max_offplane_rad : float or None
+        With it, only the detections whose nearest point the source sees within that angle of the
+        plane (rad) are fitted, when at least three with a burial are: past the transmit beam's edge
+        the echo fades and its ``b - dz`` scatters far more than ``sigma`` says (Line 4's C, 7 seeds:
+        1.4-2.1 m inside 2.25 degrees, 2.8-13 m beyond, ``sigma`` 1.4-2.8 times larger).  ``None``: all.
 
     Returns
     -------
@@ -289,23 +291,32 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
         ``k``, ``k_error``, ``burial_m``, ``burial_error_m`` (the fit's
         intercept and its standard error), ``y_crossing_m`` (``(n,)``:
         the offsets moved back to the plane, ``y_c``, as if specular),
-        ``extra_depth_m`` (the mean ``dz`` over the detections with a
-        burial, weighted as the fit, m) and ``offplane_rad`` (the median angle ``x / R`` at
-        which the source would see the nearest point, rad).
+        ``extra_depth_m`` (the mean ``dz`` over the detections with a burial, weighted by ``1 / sigma^2``,
+        m) and ``offplane_rad`` (the median angle ``x / R`` at which the source sees the nearest point).
     """
     yc, x_off, r, dz = _nearest_point(y_m, slope, centre_yz_m, seabed, prior_burial_m)
     b = np.asarray(burial_m, dtype=np.float64)
-    ok = np.isfinite(b) & np.isfinite(sigma_m)
-    w = 1 / np.maximum(np.asarray(sigma_m, dtype=np.float64)[ok], 0.3) ** 2
+    sig = np.maximum(np.asarray(sigma_m, dtype=np.float64), 0.3)
+    ok = np.isfinite(b) & np.isfinite(sig)
     out = {"k": np.nan, "k_error": np.nan, "burial_m": np.nan, "burial_error_m": np.nan, "y_crossing_m": yc,
-           "extra_depth_m": float(np.average(dz[ok], weights=w)) if ok.any() else np.nan,
+           "extra_depth_m": float(np.average(dz[ok], weights=sig[ok] ** -2)) if ok.any() else np.nan,
            "offplane_rad": float(np.median(np.abs(x_off[ok]) / r[ok])) if ok.any() else np.nan}
     if (ok.sum() < 3 or np.ptp(dz[ok]) <= 0) if k_prior_sigma is None else not ok.any():  # free k: 3 over dz
         return out
-    coef, cov = _intercept_and_k(dz[ok], b[ok], w, k_prior_sigma)
+    ok = _within_beam(ok, np.abs(x_off) / r, max_offplane_rad)
+    coef, cov = _intercept_and_k(dz[ok], b[ok], sig[ok] ** -2, k_prior_sigma)
     out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(np.sqrt(cov[0, 0])),
                k_error=float(np.sqrt(cov[1, 1])))
     return out
+
+
+def _within_beam(ok: np.ndarray, offplane_rad: np.ndarray, max_offplane_rad: float | None) -> np.ndarray:
+    """For :func:`specular_fit`: of the detections ``ok``, those whose nearest point lies within
+    ``max_offplane_rad`` of the plane when at least three do; else (or without a limit) ``ok``."""
+    if max_offplane_rad is None:
+        return ok
+    inside = ok & (offplane_rad <= max_offplane_rad)
+    return inside if np.count_nonzero(inside) >= 3 else ok
 
 
 def _nearest_point(y_m, slope, centre_yz_m, seabed, prior_burial_m: float) -> tuple:

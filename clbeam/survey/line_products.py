@@ -328,7 +328,8 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     specular_fit`: ``k`` within two standard errors of 1 and more than two from 0) or its echoes fade as a
     specular echo's over the pings with a seabed (:func:`_fades`) and the burials do not say otherwise (``k``
     more than two standard errors below 1); else ``None``.  Its burial is then the fit's with ``k`` drawn
-    towards 1 (:data:`~clbeam.survey.burial.SPECULAR_K_SIGMA`)."""
+    towards 1 (:data:`~clbeam.survey.burial.SPECULAR_K_SIGMA`) over the echoes whose nearest point lies
+    within half of ``beam_width_deg`` of the plane."""
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     s_ext = frame.ping_s[tr.first:tr.last + 1]
@@ -347,9 +348,10 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     if moved.sum() < 3 or not (by_burial or (fades and not not_specular)):
         return None if not_specular else _undecided(fit, options)
     y_c = specular_crossing(frame.y[m][moved], frame.s[m][moved], centre_yz[g[moved], 0], s_ext, options.fit_length_m)
-    # specular, whatever the free fit's k: the burial with k drawn towards the geometry's 1
+    # specular, whatever the free fit's k: the burial with k drawn towards the geometry's 1, from the echoes
+    # whose nearest point lies inside the transmit beam (half its width: as _undecided's gate)
     fit = specular_fit(frame.y[m], frame.b[m], frame.b_sigma[m], slope[k], centre_yz[g], sb[g],
-                       k_prior_sigma=SPECULAR_K_SIGMA)
+                       k_prior_sigma=SPECULAR_K_SIGMA, max_offplane_rad=0.5 * math.radians(options.beam_width_deg))
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
 
 

@@ -279,6 +279,35 @@ def test_specular_burial_with_k_drawn_to_one_spans_the_free_fit_to_the_fixed_one
     assert np.sqrt(np.mean(np.square(prior_err))) < 0.9 * np.sqrt(np.mean(np.square(free_err)))
 
 
+def test_a_specular_burial_is_fitted_over_the_echoes_whose_nearest_point_is_inside_the_transmit_beam():
+    """A pipe 900 m out turning 0-6 degrees: its nearest point ``x = y_c sin a cos a`` off the plane leaves the
+    transmit beam's half width (2.25 degrees at ``R = hypot(y_c, z)``) near 2.4 degrees of heading.  Inside,
+    the burials read ``1 + dz`` (closed form); past the edge the beam pulls the echo towards the crossing and
+    they read less (``1 + 0.3 dz`` here).  Limited to the beam, the fit gives the burial exactly, as the same
+    fit given only the echoes inside; over all, ``k`` falls to 0.3 and the burial comes 0.33 m deep; with
+    under three inside, all are fitted."""
+    a = np.radians(np.r_[np.linspace(0, 2.2, 10), np.linspace(2.7, 6.0, 10)])
+    y_c, z = -900.0, 226.0
+    x = y_c * np.sin(a) * np.cos(a)
+    dz = np.sqrt(z ** 2 + x ** 2) - z
+    inside = np.abs(x) / math.hypot(y_c, z) <= math.radians(2.25)
+    assert inside.sum() == 10
+    b = 1.0 + np.where(inside, dz, 0.3 * dz)
+    geometry = (np.sin(a), np.zeros((a.size, 2)), np.tile([225.0, 0.0], (a.size, 1)))
+    sigma = np.full(a.size, 3.0)
+    limited = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA,
+                           max_offplane_rad=math.radians(2.25))
+    assert limited["burial_m"] == pytest.approx(1.0, abs=1e-6)
+    only_inside = specular_fit(y_c * np.cos(a[inside]), b[inside], sigma[inside],
+                               *(g[inside] for g in geometry), k_prior_sigma=SPECULAR_K_SIGMA)
+    assert limited["burial_error_m"] == pytest.approx(only_inside["burial_error_m"], rel=1e-9)
+    every = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA)
+    assert every["burial_m"] > 1.25 and every["k"] < 0.5
+    narrow = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA,
+                          max_offplane_rad=math.radians(0.2))  # two inside: all fitted
+    assert narrow["burial_m"] == pytest.approx(every["burial_m"], abs=1e-12)
+
+
 def smeared_crossing_frame(seed: int, per_ping: tuple = (1, 4), n: int = 48, heading_deg: float = 40.0):
     """A rough pipe at ``heading_deg`` 150-480 m out (225 m deep): each ping sees the stretch inside the
     4.5-degree beam, ``per_ping`` (low, high exclusive) detections uniform over ``r beam tan(a)`` across;
