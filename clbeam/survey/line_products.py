@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LINE_KINDS re-exported)
-from clbeam.survey.burial import ARC_SIGMA_RAD, SPECULAR_K_SIGMA, arc_constrained, specular_fit
+from clbeam.survey.burial import ARC_SIGMA_RAD, SEABED_SE_M, SPECULAR_K_SIGMA, arc_constrained, specular_fit
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
@@ -263,6 +263,9 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
         path_y = spec["path_y"]
         if math.isfinite(spec["burial_m"]):
             burial, burial_se = spec["burial_m"], spec["burial_error_m"]
+    # the seabed's own error at the line adds to the burial's (measured, kind and resolution alike)
+    measured = (measured[0], math.hypot(measured[1], SEABED_SE_M))
+    burial_se = math.hypot(burial_se, SEABED_SE_M)
     resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
     z_line = sb[ext, 0] + sb[ext, 1] * path_y + (burial if math.isfinite(burial) else 0.0)
     angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from clbeam.survey.burial import MIN_SCATTER_N
 from clbeam.survey.line_options import LineOptions
 
 #: Hough cells kept per window and grid, the most pings first
@@ -436,9 +437,13 @@ def line_burial(b: np.ndarray, sigma: np.ndarray, floor_m: float = 0.3) -> tuple
     The mean weighted by ``1 / sigma^2`` (``sigma`` at least ``floor_m``:
     a peak's depth is never better than a fraction of the pulse), with
     detections more than three of their ``sigma`` from it dropped (up to
-    three passes); the standard error ``1 / sqrt(sum w)``; the weighted standard
-    deviation of the kept burials (the line's depth consistency).  All NaN
-    without a measured burial.
+    three passes); the weighted standard deviation of the kept burials (the
+    line's depth consistency, ``spread``); the standard error from the
+    burials' own scatter, ``spread / sqrt(n - 1)`` over the ``n`` kept when
+    there are at least :data:`~clbeam.survey.burial.MIN_SCATTER_N` (``1 / sqrt(sum w)`` times the
+    Birge ratio ``sqrt(chi^2 / (n - 1))``: the slides' ``sigma`` run 2-3
+    times the burials' scatter far from nadir), else ``1 / sqrt(sum w)``.
+    All NaN without a measured burial.
     """
     ok = np.isfinite(b) & np.isfinite(sigma)
     if not ok.any():
@@ -455,7 +460,8 @@ def line_burial(b: np.ndarray, sigma: np.ndarray, floor_m: float = 0.3) -> tuple
     w = 1 / sig[keep] ** 2
     mean = float((w * b[keep]).sum() / w.sum())
     spread = float(np.sqrt((w * (b[keep] - mean) ** 2).sum() / w.sum()))
-    return mean, float(1 / np.sqrt(w.sum())), spread
+    n = int(keep.sum())
+    return mean, spread / math.sqrt(n - 1) if n >= MIN_SCATTER_N else float(1 / np.sqrt(w.sum())), spread
 
 
 def smooth_path(frame: TrackFrame, track: Track, half_width_m: float) -> np.ndarray:

@@ -13,11 +13,11 @@ import math
 
 import numpy as np
 import pytest
-from scipy.stats import binom
+from scipy.stats import binom, sem
 
 from clbeam.errors import OptionError
 from clbeam.survey import lines as lines_module
-from clbeam.survey.burial import SPECULAR_K_SIGMA, arc_constrained, seabed_line, specular_fit
+from clbeam.survey.burial import MIN_SCATTER_N, SPECULAR_K_SIGMA, arc_constrained, seabed_line, specular_fit
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_products import line_kind
 from clbeam.survey.line_score import SearchSize, line_score, log10_binomial_tail
@@ -199,9 +199,33 @@ def test_line_burial_weights_by_precision_and_drops_outliers():
     est, se, spread = line_burial(b, sig)
     # the far detections weigh (0.3/10)^2 each; the outlier at 12 m is more than 3 sigma off
     w = np.r_[np.full(20, 1 / 0.09), np.full(10, 1 / 100)]
-    expected = (w * np.r_[np.full(20, 1.0), np.full(10, -6.0)]).sum() / w.sum()
-    assert est == pytest.approx(expected) and se == pytest.approx(1 / math.sqrt(w.sum()))
+    kept = np.r_[np.full(20, 1.0), np.full(10, -6.0)]
+    expected = (w * kept).sum() / w.sum()
+    assert est == pytest.approx(expected)
+    assert spread == pytest.approx(math.sqrt((w * (kept - expected) ** 2).sum() / w.sum()))
+    # the standard error from the scatter: 1 / sqrt(sum w) times sqrt(chi^2 / (n - 1)), n = 30 kept
+    birge = math.sqrt((w * (kept - expected) ** 2).sum() / 29)
+    assert se == pytest.approx(birge / math.sqrt(w.sum()))
+    # fewer than MIN_SCATTER_N burials: the slides' own standard error
+    assert line_burial(b[:MIN_SCATTER_N - 1], sig[:MIN_SCATTER_N - 1])[1] == pytest.approx(0.3 / math.sqrt(4))
     assert all(math.isnan(v) for v in line_burial(np.array([np.nan]), np.array([1.0])))
+
+
+def test_a_lines_burial_error_follows_its_burials_scatter_not_their_stated_sigma():
+    """Burials scattering by 1 m whose stated ``sigma`` is 3 m (the slides far from nadir run 2-3 times the
+    scatter): over 2000 draws of 9 the standard error matches scipy's standard error of the mean on average,
+    and the estimate lies within one standard error of the truth in about 68 % of the draws, not the 99.9 %
+    that ``1 / sqrt(sum w)`` (1 m) would give."""
+    rng = np.random.default_rng(12)
+    inside, ses = [], []
+    for _ in range(2000):
+        b = 1.0 + rng.normal(0, 1.0, 9)
+        est, se, _ = line_burial(b, np.full(9, 3.0))
+        assert se == pytest.approx(sem(b), rel=1e-9)
+        inside.append(abs(est - 1.0) <= se)
+        ses.append(se)
+    assert 0.60 < np.mean(inside) < 0.72  # Student's t with 8 degrees of freedom: 65 %
+    assert np.mean(ses) == pytest.approx(1 / 3, rel=0.05)  # E[s] / sqrt(9), c4(9) = 0.97
 
 
 @pytest.mark.parametrize("kwargs", [{"across_gate_m": 0}, {"seed_hits": 20}, {"max_angle_deg": 90},
@@ -277,6 +301,27 @@ def test_specular_burial_with_k_drawn_to_one_spans_the_free_fit_to_the_fixed_one
         prior_err.append(specular_fit(*args, k_prior_sigma=SPECULAR_K_SIGMA)["burial_m"] - 1.0)
     assert abs(np.mean(free_err)) < 3 * np.std(free_err) / math.sqrt(300)  # the free fit is unbiased
     assert np.sqrt(np.mean(np.square(prior_err))) < 0.9 * np.sqrt(np.mean(np.square(free_err)))
+
+
+def test_a_specular_burials_error_follows_the_scatter_about_its_fit():
+    """Line 4's C's geometry (900 m out, turning 0-2 degrees: ``dz`` up to 1.9 m, closed form), 9 burials
+    scattering by 1.5 m whose stated ``sigma`` is 4.5 m: with ``k`` drawn to 1 the reported standard error
+    comes to the burials' actual scatter over 2000 draws (within 10 %), not the three times larger
+    ``sigma`` gives, and the estimate lies within it in about two thirds of the draws."""
+    a = np.radians(np.linspace(0, 2, 9))
+    y_c, z = -900.0, 226.0
+    dz = np.sqrt(z ** 2 + (y_c * np.sin(a) * np.cos(a)) ** 2) - z
+    geometry = (np.sin(a), np.zeros((a.size, 2)), np.tile([225.0, 0.0], (a.size, 1)))
+    rng = np.random.default_rng(14)
+    est, err = [], []
+    for _ in range(2000):
+        fit = specular_fit(y_c * np.cos(a), 1.0 + dz + rng.normal(0, 1.5, a.size), np.full(a.size, 4.5),
+                           *geometry, k_prior_sigma=SPECULAR_K_SIGMA)
+        est.append(fit["burial_m"])
+        err.append(fit["burial_error_m"])
+    est, err = np.asarray(est), np.asarray(err)
+    assert np.sqrt(np.mean(err ** 2)) == pytest.approx(np.std(est - 1.0), rel=0.1)
+    assert 0.58 < np.mean(np.abs(est - 1.0) <= err) < 0.75
 
 
 def test_a_specular_burial_is_fitted_over_the_echoes_whose_nearest_point_is_inside_the_transmit_beam():
@@ -432,5 +477,8 @@ def test_a_specular_fit_drawn_to_one_gives_a_burial_where_the_free_fit_cannot():
     assert math.isnan(specular_fit(*args)["burial_m"])
     w = 1 / sigma ** 2
     prior = specular_fit(*args, k_prior_sigma=SPECULAR_K_SIGMA)
-    assert prior["burial_m"] == pytest.approx(float(np.sum(w * b) / np.sum(w)), abs=1e-9)
-    assert prior["burial_error_m"] == pytest.approx(1 / math.sqrt(np.sum(w)), rel=1e-9)
+    mean = float(np.sum(w * b) / np.sum(w))
+    assert prior["burial_m"] == pytest.approx(mean, abs=1e-9)
+    # k stays at the prior's 1: the error is the weighted mean's times the burials' Birge ratio (11 dof)
+    birge = math.sqrt(np.sum(w * (b - mean) ** 2) / (n - 1))
+    assert prior["burial_error_m"] == pytest.approx(birge / math.sqrt(np.sum(w)), rel=1e-9)
