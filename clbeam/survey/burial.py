@@ -299,7 +299,7 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
         with the prior on ``k`` scaled by :func:`_birge_ratio`), ``y_crossing_m`` (``(n,)``:
         the offsets moved back to the plane, ``y_c``, as if specular),
         ``extra_depth_m`` (the mean ``dz`` over the detections with a burial, weighted by ``1 / sigma^2``,
-        m) and ``offplane_rad`` (the median angle ``x / R`` at which the source sees the nearest point).
+        m) and ``offplane_rad`` (the median angle ``x / R`` at which the source sees the nearest point, rad).
     """
     yc, x_off, r, dz = _nearest_point(y_m, slope, centre_yz_m, seabed, prior_burial_m)
     b = np.asarray(burial_m, dtype=np.float64)
@@ -308,9 +308,9 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
     out = {"k": np.nan, "k_error": np.nan, "burial_m": np.nan, "burial_error_m": np.nan, "y_crossing_m": yc,
            "extra_depth_m": float(np.average(dz[ok], weights=sig[ok] ** -2)) if ok.any() else np.nan,
            "offplane_rad": float(np.median(np.abs(x_off[ok]) / r[ok])) if ok.any() else np.nan}
+    ok = _within_beam(ok, np.abs(x_off) / r, max_offplane_rad)
     if (ok.sum() < 3 or np.ptp(dz[ok]) <= 0) if k_prior_sigma is None else not ok.any():  # free k: 3 over dz
         return out
-    ok = _within_beam(ok, np.abs(x_off) / r, max_offplane_rad)
     coef, cov = _intercept_and_k(dz[ok], b[ok], sig[ok] ** -2, k_prior_sigma)
     scale = 1.0 if k_prior_sigma is None else _birge_ratio(dz[ok], b[ok], sig[ok] ** -2, coef, k_prior_sigma)
     out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(np.sqrt(cov[0, 0])) * scale,

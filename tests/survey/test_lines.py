@@ -348,9 +348,20 @@ def test_a_specular_burial_is_fitted_over_the_echoes_whose_nearest_point_is_insi
     assert limited["burial_error_m"] == pytest.approx(only_inside["burial_error_m"], rel=1e-9)
     every = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA)
     assert every["burial_m"] > 1.25 and every["k"] < 0.5
-    narrow = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA,
-                          max_offplane_rad=math.radians(0.2))  # two inside: all fitted
-    assert narrow["burial_m"] == pytest.approx(every["burial_m"], abs=1e-12)
+    # at 0.3 degrees two echoes are inside (0 and 0.24 degrees off): too few, all are fitted; at 0.5 three are
+    two = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA,
+                       max_offplane_rad=math.radians(0.3))
+    assert two["burial_m"] == pytest.approx(every["burial_m"], abs=1e-12)
+    three = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA,
+                         max_offplane_rad=math.radians(0.5))
+    first = specular_fit(y_c * np.cos(a[:3]), b[:3], sigma[:3], *(g[:3] for g in geometry),
+                         k_prior_sigma=SPECULAR_K_SIGMA)
+    assert three["burial_m"] == pytest.approx(first["burial_m"], abs=1e-12)
+    # a free fit limited to echoes without a spread of dz has no k: NaN, not a k of 0
+    along = np.radians([0.0, 0.0, 0.0, 3.0, 4.0, 5.0])  # three along the track inside, three turned outside
+    free = specular_fit(y_c * np.cos(along), np.ones(6), np.full(6, 3.0), np.sin(along), np.zeros((6, 2)),
+                        np.tile([225.0, 0.0], (6, 1)), max_offplane_rad=math.radians(1.0))
+    assert math.isnan(free["k"]) and math.isnan(free["burial_m"])
 
 
 def smeared_crossing_frame(seed: int, per_ping: tuple = (1, 4), n: int = 48, heading_deg: float = 40.0):

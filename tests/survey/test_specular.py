@@ -149,6 +149,31 @@ def test_a_turning_smooth_pipe_is_moved_to_its_crossings_and_a_rough_one_is_not(
     assert np.sqrt(np.mean((path_y - crossing[pings]) ** 2)) < 0.5
 
 
+def test_a_specular_lines_burial_is_fitted_inside_half_the_transmit_beam_and_its_verdict_over_all(monkeypatch):
+    """The turning smooth pipe of the survey above: the fit that decides whether the line is specular takes
+    all its echoes (free ``k``), the one that gives its burial (``k`` drawn to 1) only those whose nearest
+    point lies within half of ``beam_width_deg`` of the plane (2.25 degrees for the SBP29's 4.5), and the
+    line reports that fit's burial."""
+    import clbeam.survey.line_products as line_products
+    from clbeam.survey.burial import specular_fit
+
+    calls = []
+
+    def spy(*args, **kwargs):
+        out = specular_fit(*args, **kwargs)
+        calls.append((kwargs, out))
+        return out
+    monkeypatch.setattr(line_products, "specular_fit", spy)
+    lines, _ = _survey("smooth")
+    row = [r for r in lines.rows if r["specular"] == 1]
+    assert len(row) == 1
+    deciding = [c for c in calls if c[0].get("k_prior_sigma") is None]
+    burying = [c for c in calls if c[0].get("k_prior_sigma") is not None]
+    assert deciding and all(c[0].get("max_offplane_rad") is None for c in deciding)
+    assert burying and all(c[0]["max_offplane_rad"] == pytest.approx(np.radians(2.25)) for c in burying)
+    assert any(c[1]["burial_m"] == row[0]["burial_m"] for c in burying)
+
+
 def test_fading_verdict_needs_a_beams_fall_not_just_a_significant_one():
     """:func:`_fades` on echoes 920 m out whose level falls 2600 or 400 dB per unit sin^2 of the angle off the
     plane: the 4.5 degree beam's floor is 650 (400 fails although significant); a 9 degree beam's is 163."""
