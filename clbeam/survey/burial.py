@@ -46,7 +46,7 @@ SLIDE_FLOOR_RAD = math.radians(0.05)
 #: computed from the line's own heading and a prior burial, so ``k`` scatters about 1 (0.6-1.4 measured on Line 4's
 #: far pipes over noise seeds); at 0.5 Line 4's C burial error fell from 1.22 to 0.66 m RMS over seven seeds
 SPECULAR_K_SIGMA = 0.5
-#: a line's burial takes its standard error from its own burials' scatter about the fit (the Birge ratio) when it
+#: a line's burial takes its standard error from its own burials' scatter about the fit (as the Birge ratio) when it
 #: has at least this many (:func:`clbeam.survey.lines.line_burial`, :func:`specular_fit`); with fewer, from the
 #: slides alone.  The slides are conservative far from nadir (2-3 times the scatter at Line 4's pipes)
 MIN_SCATTER_N = 5
@@ -296,7 +296,7 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
     -------
     dict
         ``k``, ``k_error``, ``burial_m``, ``burial_error_m`` (the fit's intercept and its standard error,
-        with the prior on ``k`` scaled by :func:`_birge_ratio`), ``y_crossing_m`` (``(n,)``:
+        with the prior on ``k`` from the burials' scatter, :func:`_scatter_error`), ``y_crossing_m`` (``(n,)``:
         the offsets moved back to the plane, ``y_c``, as if specular),
         ``extra_depth_m`` (the mean ``dz`` over the detections with a burial, weighted by ``1 / sigma^2``,
         m) and ``offplane_rad`` (the median angle ``x / R`` at which the source sees the nearest point, rad).
@@ -312,20 +312,25 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
     if (ok.sum() < 3 or np.ptp(dz[ok]) <= 0) if k_prior_sigma is None else not ok.any():  # free k: 3 over dz
         return out
     coef, cov = _intercept_and_k(dz[ok], b[ok], sig[ok] ** -2, k_prior_sigma)
-    scale = 1.0 if k_prior_sigma is None else _birge_ratio(dz[ok], b[ok], sig[ok] ** -2, coef, k_prior_sigma)
-    out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(np.sqrt(cov[0, 0])) * scale,
+    se = np.sqrt(cov[0, 0]) if k_prior_sigma is None else _scatter_error(dz[ok], b[ok], sig[ok] ** -2, coef, cov)
+    out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(se),
                k_error=float(np.sqrt(cov[1, 1])))
     return out
 
 
-def _birge_ratio(dz: np.ndarray, b: np.ndarray, w: np.ndarray, coef: np.ndarray, k_prior_sigma: float) -> float:
-    """For :func:`specular_fit` with a prior on ``k``: ``sqrt(chi^2 / (n - 1))`` of the fit to its ``n`` burials
-    and the prior (``n + 1`` observations, two unknowns), the factor that takes its standard errors from the
-    burials' own scatter; 1 with fewer than :data:`MIN_SCATTER_N` burials."""
+def _scatter_error(dz: np.ndarray, b: np.ndarray, w: np.ndarray, coef: np.ndarray, cov: np.ndarray) -> float:
+    """For :func:`specular_fit` with a prior on ``k``: the intercept's standard error (m) from the burials' own
+    scatter about the fit.  The data's noise is taken as ``s^2 / w`` with ``s^2 = sum w r^2 / (n - t)`` (``t``
+    the fit's effective number of parameters the data carry, the trace of ``N^-1 A^T W A``, 1 to 2), and the
+    estimate's covariance is ``s^2 N^-1 A^T W A N^-1`` (``N`` the normal matrix with the prior): the prior
+    only shrinks, it is not scaled with the data.  With fewer than :data:`MIN_SCATTER_N` burials, ``cov``'s."""
     if b.size < MIN_SCATTER_N:
-        return 1.0
-    chi2 = float(np.sum(w * (b - coef[0] - coef[1] * dz) ** 2)) + ((coef[1] - 1) / k_prior_sigma) ** 2
-    return math.sqrt(chi2 / (b.size - 1))
+        return float(np.sqrt(cov[0, 0]))
+    a = np.stack([np.ones(dz.size), dz], axis=1)
+    data = (a * w[:, None]).T @ a
+    hat = cov @ data
+    s2 = float(np.sum(w * (b - a @ coef) ** 2)) / (b.size - float(np.trace(hat)))
+    return float(np.sqrt(s2 * (hat @ cov)[0, 0]))
 
 
 def _within_beam(ok: np.ndarray, offplane_rad: np.ndarray, max_offplane_rad: float | None) -> np.ndarray:
