@@ -311,25 +311,25 @@ def specular_fit(y_m, burial_m, sigma_m, slope, centre_yz_m, seabed, prior_buria
     ok = _within_beam(ok, np.abs(x_off) / r, max_offplane_rad)
     if (ok.sum() < 3 or np.ptp(dz[ok]) <= 0) if k_prior_sigma is None else not ok.any():  # free k: 3 over dz
         return out
-    coef, cov = _intercept_and_k(dz[ok], b[ok], sig[ok] ** -2, k_prior_sigma)
-    se = np.sqrt(cov[0, 0]) if k_prior_sigma is None else _scatter_error(dz[ok], b[ok], sig[ok] ** -2, coef, cov)
+    coef, cov, data = _intercept_and_k(dz[ok], b[ok], sig[ok] ** -2, k_prior_sigma)
+    se = np.sqrt(cov[0, 0]) if k_prior_sigma is None else _scatter_error(dz[ok], b[ok], sig[ok] ** -2, coef, cov, data)
     out.update(burial_m=float(coef[0]), k=float(coef[1]), burial_error_m=float(se),
                k_error=float(np.sqrt(cov[1, 1])))
     return out
 
 
-def _scatter_error(dz: np.ndarray, b: np.ndarray, w: np.ndarray, coef: np.ndarray, cov: np.ndarray) -> float:
-    """For :func:`specular_fit` with a prior on ``k``: the intercept's standard error (m) from the burials' own
-    scatter about the fit.  The data's noise is taken as ``s^2 / w`` with ``s^2 = sum w r^2 / (n - t)`` (``t``
-    the fit's effective number of parameters the data carry, the trace of ``N^-1 A^T W A``, 1 to 2), and the
-    estimate's covariance is ``s^2 N^-1 A^T W A N^-1`` (``N`` the normal matrix with the prior): the prior
-    only shrinks, it is not scaled with the data.  With fewer than :data:`MIN_SCATTER_N` burials, ``cov``'s."""
+def _scatter_error(dz: np.ndarray, b: np.ndarray, w: np.ndarray, coef: np.ndarray, cov: np.ndarray,
+                   data: np.ndarray) -> float:
+    """For :func:`specular_fit` with a prior on ``k``: the intercept's standard error (m) from the burials ``b``
+    (m, weights ``w``) scattering about the fit ``coef`` (covariance ``N^-1``; the data's normal matrix
+    ``A^T W A``).  The data's noise is taken as ``s^2 / w``, ``s^2 = sum w r^2 / (n - t)`` (``t`` the
+    trace of ``N^-1 A^T W A``, the parameters the data carry, 1 to 2), and the estimate's covariance is
+    ``s^2 N^-1 A^T W A N^-1``: the prior only shrinks, it is not scaled with the data.  With fewer than
+    :data:`MIN_SCATTER_N` burials, ``cov``'s."""
     if b.size < MIN_SCATTER_N:
         return float(np.sqrt(cov[0, 0]))
-    a = np.stack([np.ones(dz.size), dz], axis=1)
-    data = (a * w[:, None]).T @ a
     hat = cov @ data
-    s2 = float(np.sum(w * (b - a @ coef) ** 2)) / (b.size - float(np.trace(hat)))
+    s2 = float(np.sum(w * (b - coef[0] - coef[1] * dz) ** 2)) / (b.size - float(np.trace(hat)))
     return float(np.sqrt(s2 * (hat @ cov)[0, 0]))
 
 
@@ -359,11 +359,13 @@ def _nearest_point(y_m, slope, centre_yz_m, seabed, prior_burial_m: float) -> tu
 
 def _intercept_and_k(dz: np.ndarray, b: np.ndarray, w: np.ndarray, k_prior_sigma: float | None) -> tuple:
     """Weighted least squares of ``b = intercept + k dz`` (weights ``w``), with a Gaussian prior ``k = 1`` of
-    standard deviation ``k_prior_sigma`` as one more observation (``None``: none): coefficients and covariance."""
+    standard deviation ``k_prior_sigma`` as one more observation (``None``: none): coefficients, covariance and
+    the data's normal matrix ``A^T W A`` (without the prior)."""
     a = np.stack([np.ones(dz.size), dz], axis=1)
-    normal, rhs = (a * w[:, None]).T @ a, (a * w[:, None]).T @ b
+    data, rhs = (a * w[:, None]).T @ a, (a * w[:, None]).T @ b
+    normal = data.copy()
     if k_prior_sigma is not None:
         normal[1, 1] += k_prior_sigma ** -2
         rhs[1] += k_prior_sigma ** -2
     cov = np.linalg.pinv(normal)
-    return cov @ rhs, cov
+    return cov @ rhs, cov, data
