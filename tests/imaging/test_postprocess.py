@@ -149,3 +149,61 @@ def test_smoothing_in_windows_equals_the_whole_grids_bit_for_bit(dtype):
     got = hann_smooth_in_windows(cf, np.stack([first, end], axis=1))
     assert got.dtype == dtype
     np.testing.assert_array_equal(got, hann_smooth(cf))
+
+
+def scikit_image_peaks(img, threshold):
+    """The reference: scikit-image's regional maxima and plateau labels, each plateau's member nearest its
+    centroid (the first in raster order of equally near ones), by decreasing CF, equal CFs in the order of
+    the plateaus' labels (the raster order of their first cells)."""
+    from skimage.measure import label
+    from skimage.morphology import local_maxima
+
+    maxima = local_maxima(img, connectivity=2, allow_borders=True) & (img > threshold)
+    labels, n = label(maxima, connectivity=2, return_num=True)
+    if n == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    idx = np.argwhere(labels > 0)
+    lab = labels[idx[:, 0], idx[:, 1]]
+    counts = np.bincount(lab)
+    cy = np.bincount(lab, weights=idx[:, 0]) / np.maximum(counts, 1)
+    cx = np.bincount(lab, weights=idx[:, 1]) / np.maximum(counts, 1)
+    dist = (idx[:, 0] - cy[lab]) ** 2 + (idx[:, 1] - cx[lab]) ** 2
+    order = np.lexsort((dist, lab))
+    peaks = idx[order[np.r_[True, lab[order][1:] != lab[order][:-1]]]]
+    return peaks[np.argsort(-img[peaks[:, 0], peaks[:, 1]], kind="stable")]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_whole_image_search_equals_scikit_image_on_plateaus_and_ties(seed):
+    """Random images of a few levels (large plateaus, ties between separate maxima of one value, plateaus on
+    the edges and touching higher cells), of any shape down to one row or column, in float32 and float64:
+    the same cells in the same order as scikit-image's regional maxima."""
+    from scipy.ndimage import uniform_filter
+
+    rng = np.random.default_rng(100 + seed)
+    for trial in range(60):
+        shape = (int(rng.integers(1, 30)), int(rng.integers(1, 45)))
+        levels = int(rng.integers(2, 7))
+        img = rng.integers(0, levels, shape) / (levels - 1)
+        if trial % 2:  # smooth, then quantised: broad plateaus around maxima
+            img = np.round(uniform_filter(rng.random(shape), 3) * levels) / levels
+        img = img.astype(np.float32 if trial % 3 else np.float64)
+        threshold = float(rng.choice([0.0, 0.25, 0.5]))
+        got = coherence_peaks(img, threshold)
+        if img.size > 1:  # scikit-image finds no maximum in one cell (a constant image); the search keeps it
+            np.testing.assert_array_equal(got, scikit_image_peaks(img, threshold))
+
+
+def test_whole_image_search_equals_scikit_image_on_a_sonar_like_image():
+    """A smooth image with thousands of maxima, rounded to steps of 2^-10 so that neighbours tie (as a
+    noise-free ping's smoothed CF does): the same cells in the same order."""
+    from scipy.ndimage import gaussian_filter
+
+    rng = np.random.default_rng(8)
+    img = gaussian_filter(rng.random((300, 700)), 1.2)
+    img = ((img - img.min()) / np.ptp(img)).astype(np.float32)
+    img = np.round(img * 2**10) / 2**10   # ties: about 300 cells of the maxima's 6,000 candidates
+    got = coherence_peaks(img, 0.25)
+    ref = scikit_image_peaks(img, 0.25)
+    assert len(ref) > 1000 and len(np.unique(img[ref[:, 0], ref[:, 1]])) < len(ref) / 2  # many equal CFs
+    np.testing.assert_array_equal(got, ref)
