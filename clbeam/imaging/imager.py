@@ -53,6 +53,12 @@ from clbeam.model.svp import SoundSpeedProfile
 log = logging.getLogger(__name__)
 
 
+#: beam-sampled imaging through a sound-speed profile interpolates from at least this many beams: its band
+#: limit is measured on the travel-time tables (:func:`clbeam.imaging.engine.beams.refracted_band_limit`),
+#: and with 8 taps a 80 m/s jump left a CF error of 0.034 at -36 dB beside a point (0.011 with 12)
+REFRACTED_MIN_TAPS = 12
+
+
 @dataclass(frozen=True)
 class ImagingOptions:
     """How a ping is imaged.
@@ -387,12 +393,16 @@ class Imager:
         c = opts.sound_speed_m_s or ping.sound_speed_m_s
         across = np.linalg.norm(offsets_m[:, 1:], axis=1)
         # vessel-frame offsets (roll does not change their lengths) to the mm, speed to 1 m/s: one setting a line
-        key = (tuple(band), ping.sample_rate_hz, round(c), across.round(3).tobytes(), n_samples)
+        refracted = self.water_profile(ping) is not None and not ping.svp.is_constant
+        key = (tuple(band), ping.sample_rate_hz, round(c), across.round(3).tobytes(), n_samples, refracted)
         setting = self._settings.get(key)
         if setting is None:
             span = float(np.deg2rad(np.ptp(self.grid.angles_deg)))
             predicted = predicted_settings(across, band, ping.sample_rate_hz, c, n_angles=self.grid.shape[0],
                                            n_ranges=self.grid.shape[1], angle_span_rad=span, n_samples=n_samples)
+            if refracted and beams == "auto":
+                # the band limit of refracted sums is measured on the tables, not bounded: taps to spare
+                predicted = [s for s in predicted if s.beams is None or s.beams.taps >= REFRACTED_MIN_TAPS]
             setting = choose_setting(predicted, opts.max_error_db, interp=forced,
                                      upsample=opts.upsample or (1 if forced else None), beams=beams)
             log.info("imaging setting: %s", setting.describe())
@@ -433,7 +443,7 @@ class Imager:
             t0 = time.perf_counter()
             tables = travel_time_tables(profile, grid, centre_z_m)
             log.info("travel-time tables of a %d x %d grid in %.2f s", *grid.shape, time.perf_counter() - t0)
-            if len(self._tables) >= 3:  # about 41 bytes per cell each: two output grids and a beam grid
+            if len(self._tables) >= 4:  # about 41 bytes per cell each: two output grids, a beam grid and its probe
                 self._tables.pop(next(iter(self._tables)))
             self._tables[key] = tables
         return tables
@@ -483,7 +493,7 @@ class Imager:
                          intensity=sums.intensity if "intensity" in outs else None, cf=sums.cf, cf_smooth=cf_smooth,
                          sums=sums if "sums" in outs else None, peaks=peaks or [], context=context, timings_s=t,
                          stages_s=stages,
-                         n_channels_used=inp.n_channels, setting=setting.describe())
+                         n_channels_used=inp.n_channels, setting=_described(setting, sums))
 
     def _warn_beyond_record(self, inp: BeamformInput) -> None:
         """A warning, the first time only, when the grid runs past the record's end by more than a range step."""
@@ -525,6 +535,14 @@ class Imager:
     def peak_row_builder(self, img: PingImage):
         """``f(cf_smooth, intensity) -> rows`` for another image of ``img``'s ping (e.g. a stack)."""
         return lambda cf_smooth, intensity: self.peak_rows(img.context, cf_smooth, intensity)
+
+
+def _described(setting: Setting, sums) -> str:
+    """The setting as the ping was imaged: a beam-sampled setting whose beams would not have saved work
+    (a sound-speed profile's travel times, :meth:`Engine.beamform`) was imaged directly."""
+    if setting.beams is not None and "direct_s" in sums.timings_s:
+        return dataclasses.replace(setting, beams=None).describe() + " (beams off: the profile's travel times)"
+    return setting.describe()
 
 
 def compression_delay_s(ping: Ping) -> float:

@@ -21,7 +21,9 @@ with its own travel-time table entry):
    the grid's arc of constant range only when the source and the array sit
    at the grid centre; heave and roll move them off it, and far from nadir,
    where the beam is flat, a search along the arc then slides by tenths of a
-   degree (:class:`EqualDelay`).  Where the best point is the window's edge
+   degree (:class:`~clbeam.imaging.equal_delay.EqualDelay`; through a sound-speed
+   profile the curve follows the travel-time tables,
+   :class:`~clbeam.imaging.equal_delay.TableEqualDelay`).  Where the best point is the window's edge
    the intensity still rises there (the cell sat on the shoulder of the
    echo's main lobe, as a long pipe's far echo leaves CF peaks a beam width
    from its maximum): the window moves to it, up to four windows, so that
@@ -56,7 +58,8 @@ import numpy as np
 
 from clbeam.errors import OptionError
 from clbeam.imaging.engine.common import BeamformInput, InterpMode, Sums, interp_mode
-from clbeam.imaging.engine.points import point_grid, point_tables, straight_ray_values
+from clbeam.imaging.engine.points import bilinear_tables, point_grid, point_tables, straight_ray_values
+from clbeam.imaging.equal_delay import equal_delay_curve
 from clbeam.imaging.postprocess import HANN7
 from clbeam.model.grid import PolarGrid
 
@@ -182,7 +185,7 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
     # the beam's lobe is flat along the arc: a -45 dB interpolation ripple would move its maximum
     evaluate.mode = mode if mode.name == "exact" else ARC_MODE
     # 2. along the echo's equal-delay curve through that point (the grid's arc when the array sits at the centre)
-    along = EqualDelay(inp)
+    along = equal_delay_curve(inp, evaluate.tables, grid)
     half = np.maximum(np.rad2deg(ANGLE_SEARCH_BEAMS * beam_width_rad(inp) / np.maximum(np.cos(np.deg2rad(a0)), 0.1)),
                       2 * da)
     a_step = half * 2.0 / (ANGLE_SEARCH_POINTS - 1)
@@ -197,29 +200,6 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
     centre = int(np.flatnonzero(taps[used] == 0)[0])
     return RefinedPeaks(range_m=r2, angle_deg=a2, cf_smooth=final.cf @ HANN7[used], cf=final.cf[:, centre],
                         intensity=final.intensity[:, centre], cell=peaks, n_cells=np.ones(len(peaks), dtype=np.int64))
-
-
-class EqualDelay:
-    """The range at which a point's echo delay is the same at another angle, to first order in the source's and
-    the array's offsets from the grid centre (straight rays).
-
-    The two-way path to a cell at range ``R`` and direction ``u = (sin theta, cos theta)`` is about
-    ``2 R - (o_s + o_a) . u`` (``o_s``, ``o_a`` the source and the array centre, across and down, from the
-    grid centre), so the echo of ``(r, theta)`` lies at ``r + (o_s + o_a) . (u' - u) / 2`` along ``theta'``.
-    Heave and roll move the array off the centre: under 0.45 m of heave the curve leaves the grid's arc by
-    8 mm a degree at 70 degrees, as much as the flat far beam changes over a degree.
-    """
-
-    def __init__(self, inp: BeamformInput):
-        src = np.asarray(inp.source_offset_m, dtype=np.float64)[1:]
-        arr = np.mean(np.asarray(inp.element_offsets_m, dtype=np.float64)[:, 1:], axis=0) if inp.n_channels else src
-        self.half_offset = 0.5 * (src + arr)
-
-    def __call__(self, range_m, from_deg, to_deg) -> np.ndarray:
-        """Ranges (m) at angles ``to_deg`` with the delay of ``range_m`` at ``from_deg`` (broadcast)."""
-        t0, t1 = np.deg2rad(from_deg), np.deg2rad(to_deg)
-        oy, oz = self.half_offset
-        return range_m + oy * (np.sin(t1) - np.sin(t0)) + oz * (np.cos(t1) - np.cos(t0))
 
 
 def lobe_maximum(cf_smooth: np.ndarray, intensity: np.ndarray, ia: np.ndarray, ir: np.ndarray,
@@ -412,30 +392,5 @@ def _point_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: np.
     ``sound_speed_m_s``, or ``tables`` of ``grid`` interpolated bilinearly."""
     if tables is None:
         return point_tables(straight_ray_values(ranges_m, angles_deg, sound_speed_m_s), sound_speed_m_s, 0.0, points)
-    return point_tables(_bilinear_tables(tables, grid, ranges_m, angles_deg), tables.centre_speed_m_s,
+    return point_tables(bilinear_tables(tables, grid, ranges_m, angles_deg), tables.centre_speed_m_s,
                         tables.centre_depth_m, points)
-
-
-def _bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: np.ndarray) -> dict:
-    """The travel-time tables of ``grid`` interpolated to points (NaN where a corner is unreachable)."""
-    def corners(axis, x):
-        if axis.size < 2:
-            return np.zeros(x.shape, dtype=np.int64), np.zeros(x.shape)
-        i = np.clip(np.searchsorted(axis, x) - 1, 0, axis.size - 2)
-        return i, (x - axis[i]) / (axis[i + 1] - axis[i])
-
-    ia, ta = corners(grid.angles_deg, angles_deg)
-    ir, tr = corners(grid.ranges_m, ranges_m)
-    ia1 = np.minimum(ia + 1, grid.shape[0] - 1)
-    ir1 = np.minimum(ir + 1, grid.shape[1] - 1)
-    def lerp(a, b, t):  # a corner without weight (an unreachable one on a node) does not poison the point
-        return np.where(t == 0, a, np.where(t == 1, b, (1 - t) * a + t * b))
-
-    out = {}
-    for name in ("time_s", "launch_sin", "launch_cos", "wavefront_radius_m"):
-        v = getattr(tables, name)
-        out[name] = lerp(lerp(v[ia, ir], v[ia, ir1], tr), lerp(v[ia1, ir], v[ia1, ir1], tr), ta)
-    # the launch direction is a unit vector (the kernels' path formula relies on it): interpolate, then normalise
-    norm = np.hypot(out["launch_sin"], out["launch_cos"])
-    out["launch_sin"], out["launch_cos"] = out["launch_sin"] / norm, out["launch_cos"] / norm
-    return out

@@ -177,8 +177,8 @@ def test_far_points_under_a_heaved_array_refine_along_their_echo_not_the_grid_ar
 def test_equal_delay_curve_keeps_the_two_way_path():
     """The first-order equal-delay range against the exact two-way path from a heaved, rolled array."""
     from clbeam.imaging.engine.common import BeamformInput
+    from clbeam.imaging.equal_delay import EqualDelay
     from clbeam.imaging.geometry import to_earth_frame
-    from clbeam.imaging.subcell import EqualDelay
 
     el = to_earth_frame(np.stack([np.zeros(8), np.linspace(-1.7, 1.7, 8), np.zeros(8)], axis=1), roll_deg=3.0,
                         heave_m=0.45)

@@ -91,6 +91,69 @@ def angular_band_limit(offsets_m: np.ndarray, source_offset_m: np.ndarray, top_f
     return top_frequency_hz * float(np.max(rate_el + rate_src)) / sound_speed_m_s
 
 
+#: the angular rates of ray-traced tables are measured on a probe grid this fine in angle (degree) and
+#: with this many ranges, and raised by this factor: the probe's finite differences sample the rates'
+#: maxima, they do not bound them
+PROBE_ANGLE_STEP_DEG = 0.25
+PROBE_RANGES = 64
+REFRACTION_MARGIN = 1.25
+
+
+def probe_grid(grid: PolarGrid) -> PolarGrid:
+    """A coarse grid over ``grid``'s ranges and angles on which :func:`refracted_band_limit` measures the
+    travel-time tables' rates (``PROBE_RANGES`` ranges, ``PROBE_ANGLE_STEP_DEG`` apart in angle at most)."""
+    a0, a1 = float(grid.angles_deg[0]), float(grid.angles_deg[-1])
+    n_a = max(3, math.ceil((a1 - a0) / PROBE_ANGLE_STEP_DEG) + 1)
+    r = grid.ranges_m
+    ranges = np.linspace(float(r[0]), float(r[-1]), min(PROBE_RANGES, r.size)) if r.size > 1 else r.copy()
+    return PolarGrid.beams(ranges, np.linspace(a0, a1, n_a))
+
+
+def refracted_band_limit(base_limit: float, tables, top_frequency_hz: float,
+                         margin: float = REFRACTION_MARGIN) -> float:
+    """Angular band limit (cycles per radian) of the coherent sum with ray-traced travel times.
+
+    With a sound-speed profile the centre's two-way time ``2 T(R, theta)`` changes along an arc of
+    constant range (in isospeed water it does not), and the rays leave the array at a launch angle
+    ``phi(R, theta)`` that turns faster or slower than ``theta``.  A channel's delay then turns at most at
+    ``2 |dT/dtheta| + |d delta/dphi| |dphi/dtheta|`` seconds per radian, so
+
+        B = margin * (B_0 max(1, max |dphi/dtheta|) + 2 f_top max |dT/dtheta|)
+
+    with ``B_0`` the isospeed limit of the array (:func:`angular_band_limit`), the rates measured on the
+    tables by finite differences along angle (``margin`` covers their sampling).
+
+    Parameters
+    ----------
+    base_limit : float
+        ``B_0`` (cycles per radian).
+    tables : clbeam.imaging.raytrace.TravelTimeTables
+        Tables of a grid with at least two angles (e.g. :func:`probe_grid`'s).
+    top_frequency_hz : float
+        Top of the signal band (Hz).
+    margin : float
+        Factor >= 1 on the result.
+
+    Returns
+    -------
+    float
+        ``B`` (cycles per radian).  Cells no ray reaches are left out: the beams' interpolation flags
+        the cells whose tap beams summed different channels there, and those are imaged directly.
+    """
+    th = np.deg2rad(np.asarray(tables.grid.angles_deg, dtype=np.float64))
+    if th.size < 2:
+        return base_limit
+    dth = np.diff(th)[:, None]
+    t = np.where(tables.reachable, tables.time_s, np.nan)
+    phi = np.arctan2(tables.launch_sin, tables.launch_cos)
+    both = tables.reachable[1:] & tables.reachable[:-1]
+    if not both.any():
+        return base_limit
+    time_rate = float(np.max(np.abs(np.diff(t, axis=0))[both] / np.broadcast_to(dth, both.shape)[both]))
+    launch_rate = float(np.max(np.abs(np.diff(phi, axis=0))[both] / np.broadcast_to(dth, both.shape)[both]))
+    return margin * (base_limit * max(1.0, launch_rate) + 2.0 * top_frequency_hz * time_rate)
+
+
 def kaiser_sinc(x: np.ndarray, half_width: int, beta: float = KAISER_BETA) -> np.ndarray:
     """Kaiser-windowed sinc at offsets ``x`` (samples), zero for ``|x| >= half_width``."""
     arg = np.clip(1.0 - (x / half_width) ** 2, 0.0, None)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -10,9 +11,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.errors import GeometryError, GridError, OptionError, require
-from clbeam.imaging.engine.beams import angular_band_limit, beam_plan, interpolate_beams
+from clbeam.imaging.engine.beams import (
+    angular_band_limit,
+    beam_plan,
+    interpolate_beams,
+    probe_grid,
+    refracted_band_limit,
+)
 from clbeam.imaging.engine.points import node_tables
 from clbeam.model.grid import PolarGrid
+
+log = logging.getLogger(__name__)
 
 #: outputs a caller may request
 OUTPUTS = ("intensity", "cf", "sums")
@@ -462,11 +471,7 @@ class Engine:
             inp = dataclasses.replace(inp, data_token=object())
         exponent = self._exponent(inp)
         scale = np.ldexp(1.0, -exponent)
-        plan = None
-        if beams is not None:
-            limit = angular_band_limit(inp.element_offsets_m, inp.source_offset_m, inp.top_frequency_hz,
-                                       inp.sample_rate_hz / inp.samples_per_m, grid.angles_deg)
-            plan = beam_plan(grid, limit, beams, range_window_m)
+        plan = None if beams is None else self._beam_plan(inp, grid, beams, range_window_m)
         if plan is None:
             t0 = time.perf_counter()
             sums = self._beamform(inp.for_grid(grid), grid, mode, outs, range_window_m, scale)
@@ -474,6 +479,23 @@ class Engine:
         else:
             sums = self._beam_sampled(inp, grid, mode, outs, range_window_m, scale, plan)
         return sums.rescaled(exponent)
+
+    def _beam_plan(self, inp: BeamformInput, grid: PolarGrid, beams, range_window_m):
+        """The beam plan of ``grid`` for ``inp`` (:func:`beam_plan`), its band limit raised by the travel-time
+        tables' angular rates where the input has tables (:func:`refracted_band_limit`); ``None`` (direct
+        imaging, logged) when the beams would not save work."""
+        limit = angular_band_limit(inp.element_offsets_m, inp.source_offset_m, inp.top_frequency_hz,
+                                   inp.sample_rate_hz / inp.samples_per_m, grid.angles_deg)
+        if inp.tables is None and inp.table_source is None:
+            return beam_plan(grid, limit, beams, range_window_m)
+        probe = inp.tables if inp.table_source is None else inp.table_source(probe_grid(grid))
+        refracted = refracted_band_limit(limit, probe, inp.top_frequency_hz)
+        plan = beam_plan(grid, refracted, beams, range_window_m)
+        if plan is None:
+            log.info("beams off: the travel times through the sound-speed profile turn the sums at %.0f cycles "
+                     "per radian across angles (%.0f for the array alone), more than beams save on %d angles: "
+                     "every cell imaged directly", refracted, limit, grid.shape[0])
+        return plan
 
     def _beam_sampled(self, inp, grid, mode, outs, range_window_m, scale, plan) -> Sums:
         """Sums on the plan's beams, interpolated to ``grid``; flagged cells imaged directly, as points."""

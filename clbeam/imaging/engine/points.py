@@ -53,3 +53,28 @@ def node_tables(inp, grid: PolarGrid, rows: np.ndarray, cols: np.ndarray) -> Tra
     values = {name: getattr(tables, name)[rows, cols]
               for name in ("time_s", "launch_sin", "launch_cos", "path_length_m", "wavefront_radius_m")}
     return point_tables(values, tables.centre_speed_m_s, tables.centre_depth_m, points)
+
+
+def bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: np.ndarray) -> dict:
+    """The travel-time tables of ``grid`` interpolated to points (NaN where a corner is unreachable)."""
+    def corners(axis, x):
+        if axis.size < 2:
+            return np.zeros(x.shape, dtype=np.int64), np.zeros(x.shape)
+        i = np.clip(np.searchsorted(axis, x) - 1, 0, axis.size - 2)
+        return i, (x - axis[i]) / (axis[i + 1] - axis[i])
+
+    ia, ta = corners(grid.angles_deg, angles_deg)
+    ir, tr = corners(grid.ranges_m, ranges_m)
+    ia1 = np.minimum(ia + 1, grid.shape[0] - 1)
+    ir1 = np.minimum(ir + 1, grid.shape[1] - 1)
+    def lerp(a, b, t):  # a corner without weight (an unreachable one on a node) does not poison the point
+        return np.where(t == 0, a, np.where(t == 1, b, (1 - t) * a + t * b))
+
+    out = {}
+    for name in ("time_s", "launch_sin", "launch_cos", "wavefront_radius_m"):
+        v = getattr(tables, name)
+        out[name] = lerp(lerp(v[ia, ir], v[ia, ir1], tr), lerp(v[ia1, ir], v[ia1, ir1], tr), ta)
+    # the launch direction is a unit vector (the kernels' path formula relies on it): interpolate, then normalise
+    norm = np.hypot(out["launch_sin"], out["launch_cos"])
+    out["launch_sin"], out["launch_cos"] = out["launch_sin"] / norm, out["launch_cos"] / norm
+    return out
