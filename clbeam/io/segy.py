@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import datetime
 import logging
+import textwrap
 from pathlib import Path
 from typing import Protocol
 
@@ -37,6 +38,10 @@ COORDINATE_UNITS_ARCSEC = 2
 TIME_BASIS_UTC = 4
 #: SEG-Y sweep type codes
 SWEEP_LINEAR, SWEEP_OTHER = 1, 4
+#: columns of text on a textual-header card after its ``C nn `` prefix (80 in all)
+CARD_TEXT_COLUMNS = 76
+#: textual-header cards free for text (39 and 40 are rev 1's own)
+TEXT_CARDS = 38
 
 
 class TraceTimes(Protocol):
@@ -159,14 +164,37 @@ def coordinate_fields(latitude_deg: float | None, longitude_deg: float | None) -
             "SourceX": x, "SourceY": y, "GroupX": x, "GroupY": y, "CDP_X": x, "CDP_Y": y}
 
 
+def card_lines(lines) -> list[str]:
+    """Lines of text wrapped by words into the 76 columns a textual-header card holds after ``C nn``.
+
+    Parameters
+    ----------
+    lines : iterable of str
+        Lines of any length (non-ASCII characters become ``?``).
+
+    Returns
+    -------
+    list of str
+        The card texts: each line broken at spaces into pieces of at most
+        :data:`CARD_TEXT_COLUMNS` characters, its continuations indented by
+        two spaces; a word is cut only when it is longer than a card.
+    """
+    out = []
+    for line in lines:
+        text = line.encode("ascii", "replace").decode("ascii").rstrip()
+        out += textwrap.wrap(text, width=CARD_TEXT_COLUMNS, subsequent_indent="  ", break_on_hyphens=False) or [""]
+    return out
+
+
 def text_header(lines: list[str]) -> bytes:
-    """A 40-line SEG-Y textual header.
+    """A 40-card SEG-Y rev 1 textual header of 80-column cards ``C 1 ...`` to ``C40 ...``.
 
     Parameters
     ----------
     lines : list of str
-        Up to 38 lines (ASCII, 76 characters each, longer ones cut); lines
-        39-40 are the rev 1 ``SEG Y REV1`` and ``END TEXTUAL HEADER``.
+        Lines of text, wrapped by words onto cards 1-38 (:func:`card_lines`);
+        cards past the 38th are dropped with a warning.  Cards 39 and 40 are
+        rev 1's ``SEG Y REV1`` and ``END TEXTUAL HEADER``.
 
     Returns
     -------
@@ -174,8 +202,10 @@ def text_header(lines: list[str]) -> bytes:
         3200 ASCII bytes.
     """
     segyio = segyio_module()
-    body = [ln.encode("ascii", "replace").decode("ascii")[:76] for ln in lines[:38]]
-    rows = {i + 1: ln for i, ln in enumerate(body)}
+    cards = card_lines(lines)
+    if len(cards) > TEXT_CARDS:
+        log.warning("the SEG-Y textual header holds %d cards of text; %d dropped", TEXT_CARDS, len(cards) - TEXT_CARDS)
+    rows = {i + 1: card for i, card in enumerate(cards[:TEXT_CARDS])}
     rows[39], rows[40] = "SEG Y REV1", "END TEXTUAL HEADER"
     return segyio.tools.create_text_header(rows).encode("ascii")
 
@@ -289,5 +319,5 @@ class SegyProfileWriter:
             self._f.trace[j] = np.ascontiguousarray(values, dtype=np.float32)
 
 
-__all__ = ["SegyProfileWriter", "TraceTimes", "coordinate_fields", "segyio_module", "sweep_fields",
-           "text_header", "time_fields"]
+__all__ = ["CARD_TEXT_COLUMNS", "SegyProfileWriter", "TEXT_CARDS", "TraceTimes", "card_lines", "coordinate_fields",
+           "segyio_module", "sweep_fields", "text_header", "time_fields"]

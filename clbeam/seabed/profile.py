@@ -40,17 +40,17 @@ def _interp_linear(x, xp, fp):
     return np.where(hi, fp[-1] + (x - xp[-1]) * (fp[-1] - fp[-2]) / (xp[-1] - xp[-2]), y)
 
 
-def plot_profile(envelope: np.ndarray, path, *, t_top_s: float, t_bottom_s: float, sound_speed_m_s: float,
-                 along_track_distance_m: np.ndarray | None = None, title: str = "",
-                 dynamic_range_db: float = 50.0) -> Path:
-    """Draw an along-track profile like Holland et al. (2024) Fig. 1.
+def profile_figure(envelope: np.ndarray, *, t_top_s: float, t_bottom_s: float, sound_speed_m_s: float,
+                   along_track_distance_m: np.ndarray | None = None, title: str = "",
+                   dynamic_range_db: float = 50.0):
+    """The figure of an along-track profile like Holland et al. (2024) Fig. 1.
 
     Parameters
     ----------
     envelope : numpy.ndarray
-        ``(n_ping, n_rows)`` envelope, rows evenly spaced in two-way time.
-    path : str or path-like
-        PNG file to write.
+        ``(n_ping, n_rows)`` envelope, rows evenly spaced in two-way time;
+        row ``i`` is ping ``i``, drawn centred on ``i`` of the ping axis
+        (pings numbered from 0, as in every other output).
     t_top_s, t_bottom_s : float
         Two-way time (s) of the top edge of the first row and the bottom edge
         of the last.
@@ -66,8 +66,8 @@ def plot_profile(envelope: np.ndarray, path, *, t_top_s: float, t_bottom_s: floa
 
     Returns
     -------
-    pathlib.Path
-        ``path``.
+    matplotlib.figure.Figure
+        The figure (not drawn on a screen).
     """
     from matplotlib.figure import Figure
 
@@ -78,12 +78,34 @@ def plot_profile(envelope: np.ndarray, path, *, t_top_s: float, t_bottom_s: floa
     n_ping = env.shape[0]
     fig = Figure(figsize=(10, 5.5), layout="constrained")
     ax = fig.add_subplot()
-    im = ax.imshow(db.T, extent=(0.5, n_ping + 0.5, 1e3 * t_bottom_s, 1e3 * t_top_s), aspect="auto",
+    im = ax.imshow(db.T, extent=(-0.5, n_ping - 0.5, 1e3 * t_bottom_s, 1e3 * t_top_s), aspect="auto",
                    cmap="gray_r", vmin=-dynamic_range_db, vmax=0, interpolation="nearest")
     _label_axes(ax, n_ping, sound_speed_m_s, along_track_distance_m)
     fig.colorbar(im, ax=ax, label="envelope (dB re maximum)", pad=0.02)
     if title:
         fig.suptitle(title)
+    return fig
+
+
+def plot_profile(envelope: np.ndarray, path, **kwargs) -> Path:
+    """Draw an along-track profile (:func:`profile_figure`) into a PNG file.
+
+    Parameters
+    ----------
+    envelope : numpy.ndarray
+        ``(n_ping, n_rows)`` envelope, rows evenly spaced in two-way time.
+    path : str or path-like
+        PNG file to write.
+    **kwargs
+        The keyword arguments of :func:`profile_figure` (time axis (s), sound
+        speed (m/s), along-track distance (m), title, dynamic range (dB)).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    fig = profile_figure(envelope, **kwargs)
     p = Path(path)
     try:
         fig.savefig(p, dpi=120)
@@ -93,7 +115,7 @@ def plot_profile(envelope: np.ndarray, path, *, t_top_s: float, t_bottom_s: floa
 
 
 def _label_axes(ax, n_ping: int, sound_speed_m_s: float, along_track_distance_m) -> None:
-    """Ping and two-way time (ms) axes, with depth (m, ``c t / 2``) on the right and, when it
+    """Ping (from 0) and two-way time (ms) axes, with depth (m, ``c t / 2``) on the right and, when it
     increases strictly, along-track distance (m) on top."""
     from matplotlib.ticker import MaxNLocator
 
@@ -105,7 +127,7 @@ def _label_axes(ax, n_ping: int, sound_speed_m_s: float, along_track_distance_m)
         f"depth below the source (m, c = {sound_speed_m_s:g} m/s)")
     d = along_track_distance_m
     if d is not None and len(d) == n_ping and n_ping > 1 and np.all(np.diff(d) > 0):
-        pings = np.arange(1, n_ping + 1, dtype=np.float64)
+        pings = np.arange(n_ping, dtype=np.float64)
         sec = ax.secondary_xaxis("top", functions=(lambda p: _interp_linear(p, pings, d),
                                                    lambda x: _interp_linear(x, d, pings)))
         sec.set_xlabel("along-track distance (m)")
@@ -161,7 +183,7 @@ def _header_lines(source: Path, pings: PingFile, axis: TraceAxis, *, interp: str
         f"SAMPLE INTERVAL: {axis.interval_us} US  DELAY (T0): {axis.delay_ms} MS  FORMAT 5 IEEE FLOAT",
         "BEAM: 0 DEG FROM NADIR, EARTH-REFERENCED (ROLL, HEAVE COMPENSATED; PITCH IGNORED)",
         "DELAY-AND-SUM OF PULSE-COMPRESSED ANALYTIC CHANNELS",
-        f"INTERPOLATION {interp.upper()}"[:80],
+        f"INTERPOLATION {interp.upper()}",
         "S = COHERENT SUM OVER THE M CONTRIBUTING CHANNELS; TRACE = S/M, 0 WHERE M = 0",
         layout,
         "SAMPLE K: TWO-WAY TIME DELAY + K*INTERVAL; RANGE FROM SOURCE = C*T/2",
@@ -253,7 +275,7 @@ def write_profile(pings_path, segy_path, *, png_path=None, plot: bool = True, ma
     Parameters
     ----------
     pings_path : str or path-like
-        Ping file (SPEC §7).
+        Ping file (docs/ping-format.md).
     segy_path : str or path-like
         SEG-Y file to write (see ``docs/profile.md``).
     png_path : str or path-like, optional
@@ -306,4 +328,4 @@ def write_profile(pings_path, segy_path, *, png_path=None, plot: bool = True, ma
     return ProfileResult(segy_path=segy_path, png_path=png, axis=axis, n_pings=traced.n_pings,
                          traces_per_ping=2 if analytic else 1, seconds=time.perf_counter() - t_start)
 
-__all__ = ["PLOT_MAX_ROWS", "ProfileResult", "plot_profile", "write_profile"]
+__all__ = ["PLOT_MAX_ROWS", "ProfileResult", "plot_profile", "profile_figure", "write_profile"]
