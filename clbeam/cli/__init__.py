@@ -1,4 +1,4 @@
-"""The ``clbeam`` command line (SPEC §8)."""
+"""The ``clbeam`` command line (docs/cli.md)."""
 
 from clbeam.cli.main import build_parser, main
 

@@ -30,7 +30,7 @@ from clbeam.io.paths import check_output_path
 log = logging.getLogger(__name__)
 
 NAME = "avo"
-HELP = "AVO analysis: angular responses from an image file, patches, attributes, inversion for grain size (SPEC §5)"
+HELP = "AVO analysis: angular responses from an image file, patches, attributes, inversion for grain size (see clbeam docs avo)"
 
 
 def options_from_args(args):
@@ -183,5 +183,5 @@ def add_arguments(p) -> None:
                         "them): each patch's nadir reflection coefficient "
                         "from the seabed echo and its surface multiple, the calibration the patches give together "
                         "(applied unless --calibration-db), and a joint inversion of both with the response "
-                        "(docs/avo.md)")
+                        "(clbeam docs avo)")
     p.add_argument("--figures", default=None, metavar="DIR", help="also draw the AVO figures (PNG) into DIR")

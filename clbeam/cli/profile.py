@@ -12,7 +12,7 @@ DESCRIPTION = ("Form a vertical (nadir, earth-referenced) beam per ping and writ
 
 def add_arguments(p) -> None:
     """The arguments of ``clbeam profile``."""
-    p.add_argument("pings", metavar="PINGS.nc", help="ping file (NetCDF4 or Zarr, SPEC §7)")
+    p.add_argument("pings", metavar="PINGS.nc", help="ping file (NetCDF4 or Zarr; see clbeam docs ping-format)")
     p.add_argument("-o", "--output", required=True, metavar="PROFILE.sgy", help="SEG-Y file to write")
     p.add_argument("--max-range", type=float, default=None, metavar="M",
                    help="largest range (m) of the traces (default: the end of the record)")

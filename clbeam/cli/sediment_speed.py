@@ -17,7 +17,7 @@ from clbeam.io.paths import check_output_path
 NAME = "sediment-speed"
 HELP = "sediment interval velocity: the speed that makes a sub-bottom reflector most coherent (scan of candidate speeds)"
 DESCRIPTION = ("Image one ping with each candidate sediment speed (rays refracted at a flat seabed at --seabed-depth) "
-               "and report the speed whose sub-bottom reflector detections line up best in depth (docs/beyond.md). "
+               "and report the speed whose sub-bottom reflector detections line up best in depth (clbeam docs beyond). "
                "The scan sets --sediment-speed, --mlh and --seabed-band itself (giving them is an error); "
                "--threshold defaults to 0.5 here.")
 

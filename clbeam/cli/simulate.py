@@ -1,4 +1,4 @@
-"""``clbeam simulate``: a scene's pings into a ping file (SPEC §7)."""
+"""``clbeam simulate``: a scene's pings into a ping file (docs/ping-format.md)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import sys
 import time
 
 NAME = "simulate"
-HELP = "simulate a scene's pings into a ping file (SPEC §7)"
+HELP = "simulate a scene's pings into a ping file (see clbeam docs ping-format)"
 
 
 def add_arguments(p) -> None:

@@ -18,12 +18,12 @@ NAME = "survey"
 HELP = "image a whole survey into coherence peaks (and images): resumable, parallel"
 DESCRIPTION = ("Image every ping of the input files; write the coherence peaks (Zarr, CSV, GeoJSON), the "
                "persistence map, the associated objects and the lines (pipelines and the rest, scored); resume "
-               "after any interruption.  See docs/survey.md and docs/lines.md.")
+               "after any interruption.  See clbeam docs survey and clbeam docs lines.")
 
 
 def add_arguments(p) -> None:
     """The arguments of ``clbeam survey``."""
-    p.add_argument("inputs", nargs="+", metavar="INPUT", help="ping files (NetCDF4 or Zarr, SPEC §7), in survey order")
+    p.add_argument("inputs", nargs="+", metavar="INPUT", help="ping files in survey order (clbeam docs ping-format)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.zarr",
                    help="survey store; products OUT.peaks.csv, OUT.peaks.geojson, OUT.objects.csv, "
                         "OUT.objects.geojson, OUT.lines.csv, OUT.lines.geojson, OUT.map.png, OUT.persistence.png "
@@ -58,10 +58,10 @@ def add_arguments(p) -> None:
 def add_line_options(p) -> None:
     """The options of the lines (products only: a rerun may change them without re-imaging)."""
     d = LineOptions()
-    a = p.add_argument_group("lines (docs/lines.md)")
+    a = p.add_argument_group("lines (clbeam docs lines)")
     a.add_argument("--line-min-score", type=float, default=d.min_score, metavar="S",
                    help=f"score a line needs: -log10 of the expected chance lines as good per km "
-                        f"(default {d.min_score:g}: no false pipeline line in the simulated clutter, docs/lines.md)")
+                        f"(default {d.min_score:g}: no false pipeline line in the simulated clutter: clbeam docs lines)")
     a.add_argument("--line-gate", type=float, default=d.across_gate_m, metavar="M",
                    help=f"largest cross-track distance of a detection from its line (m, default {d.across_gate_m:g})")
     a.add_argument("--line-max-gap", type=int, default=d.max_gap_pings, metavar="N",
