@@ -426,6 +426,8 @@ class Imager:
             return inp
         if profile is None:
             profile = SoundSpeedProfile.constant(inp.sound_speed_m_s)
+        elif c_sed is None:
+            check_profile_reaches_grid(profile, self.grid, centre_z_m)
         if c_sed is not None:
             depth = self.options.seabed_depth_m
             if depth is None:
@@ -535,6 +537,21 @@ class Imager:
     def peak_row_builder(self, img: PingImage):
         """``f(cf_smooth, intensity) -> rows`` for another image of ``img``'s ping (e.g. a stack)."""
         return lambda cf_smooth, intensity: self.peak_rows(img.context, cf_smooth, intensity)
+
+
+def check_profile_reaches_grid(profile: SoundSpeedProfile, grid: PolarGrid, centre_z_m: float) -> None:
+    """Raise :class:`GridError` unless ``profile`` (depths on the earth-frame ``z`` axis, m) reaches the
+    deepest cell of ``grid`` (centred ``centre_z_m`` m below the array reference point): below its last
+    point the speed would be held at the last value, which for a cast that stops short of the seabed
+    images the deeper cells through water nobody measured."""
+    theta = np.deg2rad(grid.angles_deg)
+    cos_max = 1.0 if theta.min() <= 0.0 <= theta.max() else float(np.max(np.cos(theta)))
+    deepest = centre_z_m + float(grid.ranges_m.max()) * max(cos_max, 0.0)
+    last = float(profile.depths_m[-1])
+    require(last >= deepest, GridError,
+            f"the sound-speed profile (svp_depth) ends at {last:g} m but the grid reaches {deepest:.1f} m below the "
+            f"array: extend the profile to {math.ceil(deepest):d} m (a last point with the speed to hold), image "
+            "a shallower grid, or ignore the profile (--isospeed)")
 
 
 def _described(setting: Setting, sums) -> str:

@@ -174,12 +174,18 @@ class SoundSpeedProfile:
         return bool(np.all(self.speeds_m_s == self.speeds_m_s[0]))
 
 
+#: depth (m) to which :func:`holland_line1_profile` holds its seabed speed, so that it reaches any grid
+#: of the paper's record (1.5 s: 1125 m)
+HOLLAND_PROFILE_END_M = 2000.0
+
+
 def holland_line1_profile(sediment_speed_m_s: float | None = None) -> SoundSpeedProfile:
     """The measured profile of Holland et al. (2024), Line 1, on the array's depth axis.
 
     Transducers 5 m below the surface (``z = 0``); 1522 m/s in the 8 m
     surface mixed layer (``z = -5`` to ``3`` m), then linear to 1490 m/s at
-    the seabed, 225 m below the transducers; 1490 m/s below unless a
+    the seabed, 225 m below the transducers; 1490 m/s below (a last point at
+    2000 m, so the profile reaches every grid of the paper's record) unless a
     sediment speed is given.
 
     Parameters
@@ -191,7 +197,8 @@ def holland_line1_profile(sediment_speed_m_s: float | None = None) -> SoundSpeed
     -------
     SoundSpeedProfile
     """
-    water = SoundSpeedProfile(np.array([-5.0, 3.0, 225.0]), np.array([1522.0, 1522.0, 1490.0]))
+    water = SoundSpeedProfile(np.array([-5.0, 3.0, 225.0, HOLLAND_PROFILE_END_M]),
+                              np.array([1522.0, 1522.0, 1490.0, 1490.0]))
     if sediment_speed_m_s is None:
         return water
     return SoundSpeedProfile.with_sediment(water, 225.0, sediment_speed_m_s)

@@ -22,8 +22,8 @@ from clbeam.model.svp import SoundSpeedProfile
 GRID = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=300.0, angles_deg=(-40, 40))
 POINTS_YZ = np.array([[60.0, 150.0], [-120.0, 180.0], [140.0, 210.0], [20.0, 240.0], [-45.0, 255.0]])
 PROFILES = {
-    "jump +60 m/s at 80 m": SoundSpeedProfile([0.0, 80.0, 80.0], [1500.0, 1500.0, 1560.0]),
-    "jump -80 m/s at 120 m": SoundSpeedProfile([0.0, 120.0, 120.0], [1530.0, 1530.0, 1450.0]),
+    "jump +60 m/s at 80 m": SoundSpeedProfile([0.0, 80.0, 80.0, 400.0], [1500.0, 1500.0, 1560.0, 1560.0]),
+    "jump -80 m/s at 120 m": SoundSpeedProfile([0.0, 120.0, 120.0, 400.0], [1530.0, 1530.0, 1450.0, 1450.0]),
     "gradient 1540 -> 1480 m/s": SoundSpeedProfile([0.0, 300.0], [1540.0, 1480.0]),
 }
 #: the default budget: intensity error (dB of the image's peak power) and CF error, on cells within 40 dB
@@ -100,7 +100,7 @@ def test_refracted_band_limit_of_isospeed_tables_is_the_arrays():
 def test_a_profile_whose_rates_leave_no_saving_images_directly():
     """A strong shallow jump over a wide swath: the beams would be as many as the angles, so the engine
     images every cell directly and the setting says so."""
-    profile = SoundSpeedProfile([0.0, 20.0, 20.0], [1450.0, 1450.0, 1650.0])
+    profile = SoundSpeedProfile([0.0, 20.0, 20.0, 200.0], [1450.0, 1450.0, 1650.0, 1650.0])
     grid = PolarGrid.regular(range_res_m=1.0, angle_res_deg=1.0, max_range_m=120.0, angles_deg=(-60, 60))
     ping = profile_point_ping(np.array([[30.0, 80.0]]), profile, record_s=0.2)
     options = dict(outputs=("intensity", "cf"), interp="lanczos4", refine_peaks=False)
@@ -132,3 +132,28 @@ def test_table_equal_delay_keeps_the_exact_two_way_time():
     # the straight-ray curve is the grid's arc here: it misses the delay by metres of path
     straight = EqualDelay(inp)(r0, a0, to)
     assert np.max(np.abs(two_way(straight, to) - two_way(np.array([r0]), np.array([a0])))) * 1500 > 0.05
+
+
+def test_a_profile_that_stops_above_the_grid_is_refused_in_one_line(tmp_path, capsys):
+    """A cast that ends at 200 m while the grid reaches 300 m: the speed below would be a guess."""
+    from scenes import ping_dataset
+
+    from clbeam import cli
+    from clbeam.errors import GridError
+
+    short = SoundSpeedProfile([0.0, 80.0, 80.0, 200.0], [1500.0, 1500.0, 1560.0, 1560.0])
+    ping = profile_point_ping(POINTS_YZ[:1], short, record_s=0.45)
+    with pytest.raises(GridError, match=r"ends at 200 m but the grid reaches 300\.0 m"):
+        Imager(GRID, ImagingOptions(outputs=("intensity", "cf"))).image(ping)
+    # the grid's deepest cell is at its smallest |angle|: a starboard-only swath reaches R cos(20 deg)
+    side = PolarGrid.regular(range_res_m=0.5, angle_res_deg=0.5, max_range_m=210.0, angles_deg=(20, 40))
+    img = Imager(side, ImagingOptions(outputs=("intensity", "cf"), refine_peaks=False)).image(ping)
+    assert img.cf.shape == side.shape
+    ping_dataset(ping).to_netcdf(tmp_path / "p.nc")
+    rc = cli.main(["image", str(tmp_path / "p.nc"), "-o", str(tmp_path / "i.nc"), "--max-range", "300",
+                   "--angles", "-40", "40", "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "svp_depth" in err[0], err
+    # --isospeed ignores the profile
+    assert cli.main(["image", str(tmp_path / "p.nc"), "-o", str(tmp_path / "i.nc"), "--max-range", "300",
+                     "--angles", "-40", "40", "-q", "--isospeed"]) == 0
