@@ -225,20 +225,64 @@ def merge_refined(refined: RefinedPeaks, range_tol_m: np.ndarray | float,
                   angle_tol_deg: np.ndarray | float) -> RefinedPeaks:
     """One entry per echo: refined peaks closer than the tolerances (m, degree) to an
     earlier one in the given order (:func:`subcell_peaks` gives them by decreasing refined
-    intensity) are merged into it; ``n_cells`` counts the grid peaks each kept entry stands for."""
+    intensity) are merged into it; ``n_cells`` counts the grid peaks each kept entry stands for.
+
+    In order, an entry not yet merged is kept and takes every later entry within its tolerances not yet
+    merged.  The pairs within tolerance come from a grid of buckets the size of the largest tolerances, and
+    the entries are settled in rounds: kept when every earlier entry that would take it is merged, merged
+    into the first kept one that takes it (rounds as many as the longest chain of entries taking the next)."""
     n = refined.range_m.size
-    r_tol = np.broadcast_to(range_tol_m, (n,))
-    a_tol = np.broadcast_to(angle_tol_deg, (n,))
-    owner = np.full(n, -1)
-    for i in range(n):
-        if owner[i] >= 0:
-            continue
-        owner[i] = i
-        same = ((np.abs(refined.range_m - refined.range_m[i]) < r_tol[i])
-                & (np.abs(refined.angle_deg - refined.angle_deg[i]) < a_tol[i]) & (owner < 0))
-        owner[same] = i
-    kept = np.flatnonzero(owner == np.arange(n))
-    return refined.take(kept, np.bincount(owner, weights=refined.n_cells, minlength=n)[kept].astype(np.int64))
+    r_tol = np.broadcast_to(np.asarray(range_tol_m, dtype=np.float64), (n,))
+    a_tol = np.broadcast_to(np.asarray(angle_tol_deg, dtype=np.float64), (n,))
+    src, dst = _pairs_within(refined.range_m, refined.angle_deg, r_tol, a_tol)
+    kept = np.zeros(n, dtype=bool)
+    settled = np.zeros(n, dtype=bool)
+    owner = np.arange(n)
+    while not settled.all():
+        # an entry is taken by a kept earlier one, or kept when all earlier ones that would take it are merged
+        taken = np.zeros(n, dtype=bool)
+        taken[dst[kept[src]]] = True
+        waiting = np.zeros(n, dtype=bool)
+        waiting[dst[~settled[src]]] = True
+        newly_kept = ~settled & ~taken & ~waiting
+        kept |= newly_kept
+        settled |= newly_kept | (taken & ~settled)
+    by_kept = kept[src]
+    first = np.full(n, n)
+    np.minimum.at(first, dst[by_kept], src[by_kept])
+    owner = np.where(kept, owner, first)
+    index = np.flatnonzero(kept)
+    return refined.take(index, np.bincount(owner, weights=refined.n_cells, minlength=n)[index].astype(np.int64))
+
+
+def _pairs_within(range_m: np.ndarray, angle_deg: np.ndarray, r_tol: np.ndarray,
+                  a_tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs ``(i, j)``, ``i < j``, with ``j`` within ``i``'s tolerances (strictly), from buckets of the
+    largest tolerances (each entry's neighbours in its own and the 8 buckets about it)."""
+    n = range_m.size
+    if n < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    size_r, size_a = max(float(r_tol.max()), 1e-12), max(float(a_tol.max()), 1e-12)
+    # a non-finite position's bucket is 0: the exact test below never finds it near another
+    br = np.nan_to_num(np.floor((range_m - np.nanmin(range_m)) / size_r), nan=0, posinf=0, neginf=0).astype(np.int64)
+    ba = np.nan_to_num(np.floor((angle_deg - np.nanmin(angle_deg)) / size_a), nan=0, posinf=0, neginf=0).astype(np.int64)
+    width = int(ba.max()) + 3
+    key = (br + 1) * width + (ba + 1)
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    src, dst = [], []
+    for dr in (-1, 0, 1):
+        for da in (-1, 0, 1):
+            want = key + dr * width + da
+            lo, hi = np.searchsorted(sorted_key, want, "left"), np.searchsorted(sorted_key, want, "right")
+            count = hi - lo
+            i = np.repeat(np.arange(n), count)
+            j = order[np.repeat(lo - np.cumsum(count) + count, count) + np.arange(count.sum())]
+            src.append(i)
+            dst.append(j)
+    i, j = np.concatenate(src), np.concatenate(dst)
+    near = (i < j) & (np.abs(range_m[j] - range_m[i]) < r_tol[i]) & (np.abs(angle_deg[j] - angle_deg[i]) < a_tol[i])
+    return i[near], j[near]
 
 
 def _local_step(axis: np.ndarray, index: np.ndarray) -> np.ndarray:

@@ -282,3 +282,41 @@ def test_the_last_parabola_reaches_a_lopsided_lobes_maximum_and_climbs_where_it_
     start = np.array([70.5, 69.5])
     moved = _arc_polish(rising, along, np.full(2, 600.0), start, np.full(2, 0.125))[1]
     assert moved == pytest.approx([70.625, 69.375])
+
+
+def sequential_merge(refined, r_tol, a_tol):
+    """The reference: each entry in order, not yet merged, kept and taking every later one within its
+    tolerances not yet merged."""
+    n = refined.range_m.size
+    r_tol, a_tol = np.broadcast_to(r_tol, (n,)), np.broadcast_to(a_tol, (n,))
+    owner = np.full(n, -1)
+    for i in range(n):
+        if owner[i] < 0:
+            owner[i] = i
+            same = ((np.abs(refined.range_m - refined.range_m[i]) < r_tol[i])
+                    & (np.abs(refined.angle_deg - refined.angle_deg[i]) < a_tol[i]) & (owner < 0))
+            owner[same] = i
+    kept = np.flatnonzero(owner == np.arange(n))
+    return kept, np.bincount(owner, weights=refined.n_cells, minlength=n)[kept]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_merge_equals_the_sequential_rule_on_crowded_peaks(seed):
+    """Hundreds of refined peaks crowded within a few tolerances (chains of entries each taking the next, ties
+    on a rounded range, a NaN position, per-entry and common tolerances): the same entries kept and counts."""
+    from clbeam.imaging.subcell import RefinedPeaks, merge_refined
+
+    rng = np.random.default_rng(seed)
+    for trial in range(40):
+        n = int(rng.integers(0, 400))
+        r = np.round(rng.uniform(0, float(rng.choice([1.0, 10.0, 100.0])), n), int(rng.integers(1, 4)))
+        a = rng.uniform(-5, 5, n)
+        if n > 3:
+            a[2] = np.nan
+        peaks = RefinedPeaks(r, a, r, r, r, np.zeros((n, 2), dtype=np.int64), rng.integers(1, 4, n))
+        r_tol = rng.uniform(0.01, 0.4, n) if trial % 2 else 0.2
+        a_tol = rng.uniform(0.1, 2.0, n) if trial % 3 else 0.5
+        kept, counts = sequential_merge(peaks, r_tol, a_tol)
+        got = merge_refined(peaks, r_tol, a_tol)
+        np.testing.assert_array_equal(got.range_m, r[kept])
+        np.testing.assert_array_equal(got.n_cells, counts)
