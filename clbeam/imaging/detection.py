@@ -273,16 +273,28 @@ def annotate_and_gate(rows: list, *, floor: float, n_channels: int | None, eigen
     the noise floor (where it does not, the clutter is the noise, which the CF and the SNR test already
     judge; ``None``: no test; a NaN value passes)."""
     floor_db = 10 * math.log10(floor) if floor > 0 and math.isfinite(floor) else math.nan
-    snr = [row["intensity_db"] - floor_db if math.isfinite(floor_db) else math.nan for row in rows]
+    snr = snr_db(rows, floor)
     echo, clutter = (np.full(len(rows), np.nan),) * 2 if contrast is None else contrast
     kept = [(row, s, e - c) for row, s, e, c in zip(rows, snr, echo, clutter)
-            if _passes(s, min_snr_db) and clutter_test_passes(e - c, c - floor_db, min_contrast_db)]
+            if snr_test_passes(s, min_snr_db) and clutter_test_passes(e - c, c - floor_db, min_contrast_db)]
     if n_channels and kept:  # every row's probability in one call
         pfa = false_alarm_probability(np.array([row["cf"] for row, _, _ in kept]), n_channels, eigenvalues)
     else:
         pfa = np.full(len(kept), math.nan)
     return [{**row, "snr_db": float(s), "contrast_db": float(c), "pfa": float(p)}
             for (row, s, c), p in zip(kept, np.atleast_1d(pfa))]
+
+
+def snr_db(rows: list, floor: float) -> list:
+    """Each row's ``intensity_db`` over the noise ``floor`` (intensity units), dB; NaN where the floor is not
+    positive and finite."""
+    floor_db = 10 * math.log10(floor) if floor > 0 and math.isfinite(floor) else math.nan
+    return [row["intensity_db"] - floor_db if math.isfinite(floor_db) else math.nan for row in rows]
+
+
+def snr_test_passes(snr: float, min_snr_db: float | None) -> bool:
+    """The SNR test of :func:`annotate_and_gate`: passed at ``min_snr_db`` or more, by NaN and by ``None``."""
+    return _passes(snr, min_snr_db)
 
 
 def clutter_test_passes(contrast_db: float, clutter_over_floor_db: float, min_contrast_db: float | None) -> bool:

@@ -31,6 +31,8 @@ from clbeam.imaging.detection import (
     local_contrast,
     noise_floor,
     smoothing_eigenvalues,
+    snr_db,
+    snr_test_passes,
 )
 from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.mlh import (
@@ -68,6 +70,10 @@ class PingContext:
         Sound speed the ping was imaged with (m/s).
     n_channels : int or None
         Channels that took part (the peaks' false-alarm probability); ``None``: unknown.
+    time : numpy.datetime64 or None
+        Time of transmission (the image file's ``ping_time``).
+    draft_m : float or None
+        Depth of the array reference point below the sea surface (m); ``None``: not given.
     """
 
     index: int
@@ -80,6 +86,8 @@ class PingContext:
     array_width_m: float = SBP29_ARRAY_WIDTH_M
     sound_speed_m_s: float = SOUND_SPEED_M_S
     n_channels: int | None = None
+    time: np.datetime64 | None = None
+    draft_m: float | None = None
 
     @classmethod
     def of_ping(cls, ping, grid: PolarGrid, sound_speed_m_s: float | None = None,
@@ -97,7 +105,7 @@ class PingContext:
                    source_yz_m=(float(source[1]), float(source[2])), latitude_deg=ping.latitude_deg,
                    longitude_deg=ping.longitude_deg, heading_deg=ping.heading_deg, band_hz=band,
                    array_width_m=width, sound_speed_m_s=float(sound_speed_m_s or ping.sound_speed_m_s),
-                   n_channels=n_channels)
+                   n_channels=n_channels, time=ping.time, draft_m=ping.draft_m)
 
     @property
     def navigation(self) -> dict:
@@ -157,10 +165,16 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
     lam = smoothing_eigenvalues(float(np.median(np.diff(grid.ranges_m))) if grid.shape[1] > 1 else 1.0,
                                 float(band[1] - band[0]), context.sound_speed_m_s)
     window, guard = contrast_windows(band, context.array_width_m, context.sound_speed_m_s)
-    contrast = local_contrast(intensity, grid.ranges_m, grid.angles_deg, rows, window=window, guard=guard)
-    return annotate_and_gate(rows, floor=noise_floor(intensity, cf_smooth), n_channels=context.n_channels,
-                             eigenvalues=lam, min_snr_db=min_snr_db, contrast=contrast,
-                             min_contrast_db=min_contrast_db)
+    floor = noise_floor(intensity, cf_smooth)
+    # the clutter about the rows the SNR test keeps only: the others leave the table whatever their contrast
+    # (a noise-free ping's thousands of maxima on its rounding are a hundred above the floor)
+    measured = [k for k, snr in enumerate(snr_db(rows, floor)) if snr_test_passes(snr, min_snr_db)]
+    echo, clutter = np.full(len(rows), np.nan), np.full(len(rows), np.nan)
+    if measured:
+        echo[measured], clutter[measured] = local_contrast(intensity, grid.ranges_m, grid.angles_deg,
+                                                           [rows[k] for k in measured], window=window, guard=guard)
+    return annotate_and_gate(rows, floor=floor, n_channels=context.n_channels, eigenvalues=lam,
+                             min_snr_db=min_snr_db, contrast=(echo, clutter), min_contrast_db=min_contrast_db)
 
 
 def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options) -> list[dict]:
