@@ -5,7 +5,7 @@ default (the paper's 0.25 coherence threshold, the SBP29 band) or a limit
 (the sound speeds a ping file may hold) changes in one place.
 """
 
-# -- the SBP29-class instrument (SPEC §1; Holland et al. 2024, Section II) --
+# -- the SBP29-class instrument (Holland et al. 2024, Section II) -----------
 #: receive elements across-track
 SBP29_N_ELEMENTS = 64
 #: receive array width across-track (m)
@@ -21,7 +21,7 @@ SBP29_TX_LENGTH_M = 3.5
 #: sample rate of the reference scene (Hz)
 SBP29_SAMPLE_RATE_HZ = 40000.0
 
-# -- media (SPEC §4) ---------------------------------------------------------
+# -- media (docs/simulator.md) ----------------------------------------------
 #: isospeed sound speed of the reference scene (m/s)
 SOUND_SPEED_M_S = 1500.0
 #: sound speeds a ping file, an option or a water profile may hold (m/s)
@@ -31,7 +31,7 @@ PROFILE_SPEED_RANGE_M_S = (1300.0, 2000.0)
 #: sediment interval velocities an option may give (m/s)
 SEDIMENT_SPEED_RANGE_M_S = (1300.0, 2000.0)
 
-# -- ping-file limits (SPEC §7) ---------------------------------------------
+# -- ping-file limits (docs/ping-format.md) ------------------------------------
 #: largest roll a ping may carry (degree)
 MAX_ABS_ROLL_DEG = 45.0
 #: largest distance (m) of an element or the source from the array reference point
@@ -43,7 +43,7 @@ MAX_ABS_GAIN_DB = 60.0
 #: default error budget of the intensity against the exact image (dB): picks mode, upsampling and beams
 DEFAULT_MAX_ERROR_DB = -40.0
 
-# -- detection (SPEC §3 step 7; Holland et al. 2024, Section III) -----------
+# -- detection (docs/peaks.md; Holland et al. 2024, Section III) ----------------
 #: coherence-peak threshold on the smoothed CF (the paper's 0.25)
 PEAK_THRESHOLD = 0.25
 #: CF (and peaks) only in cells summed from at least this fraction of the usable channels

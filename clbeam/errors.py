@@ -12,7 +12,7 @@ class ClbeamError(Exception):
 
 
 class PingFileError(ClbeamError):
-    """A ping file (SPEC §7) is missing, unreadable or invalid."""
+    """A ping file (docs/ping-format.md) is missing, unreadable or invalid."""
 
 
 class GeometryError(ClbeamError):

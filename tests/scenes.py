@@ -40,7 +40,7 @@ def point_ping(targets_m, amplitudes=None, *, roll_deg=0.0, heave_m=0.0, n_chann
     """A ping with point scatterers at earth-frame positions ``targets_m`` (``(k, 3)``, m).
 
     Travel times ``(|r - s| + |r - e_n|) / c`` with the array rolled and heaved
-    as SPEC §2 says; amplitude ``a / (|r - s| |r - e_n|)``.  ``kind="analytic"``
+    as docs/ping-format.md says; amplitude ``a / (|r - s| |r - e_n|)``.  ``kind="analytic"``
     stores the exact compressed analytic signal instead of raw pressure.
     """
     targets = np.atleast_2d(np.asarray(targets_m, dtype=float))
@@ -116,13 +116,13 @@ def profile_point_ping(targets_yz_m, profile, *, n_channels=64, record_s=1.5, t0
 
 
 def ping_dataset(ping: Ping, **extra):
-    """A one-ping SPEC §7 dataset (float32 samples) of ``ping`` from clbeam's writer, with
+    """A one-ping dataset (float32 samples) of ``ping`` from clbeam's writer, with
     extra variables (``name=(dims, values)``)."""
     return dataset_from_pings([ping], samples_dtype=np.float32).assign(**extra)
 
 
 def dataset(n_pings=3, kind="raw", seed=0):
-    """Three pings of point scatterers and a minimal SPEC §7 dataset of them written by hand, the
+    """Three pings of point scatterers and a minimal ping dataset of them written by hand, the
     way another program would (no element_x, few attributes): the reader must not depend on
     clbeam's own writer."""
     pings = [point_ping(polar_point(40 + 5 * i, 10 * i), kind=kind, record_s=0.08, roll_deg=i) for i in range(n_pings)]

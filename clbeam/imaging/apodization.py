@@ -12,7 +12,7 @@ inequality on ``√w_n · √w_n p_n``, ``|S_w|^2 <= W Q_w``, so CF_w lies in
 [0, 1]; it is 1 exactly when every contributing ``p_n`` is the same value
 (a perfectly coherent, equal-amplitude arrival), whatever the window, and
 with ``w_n = 1`` it is the coherence factor of Holland et al. (2024) eq. 2
-with the 1/M of SPEC §3.
+with the 1/M of docs/imaging.md.
 
 Element calibration: the ping file's optional ``element_gain_db(channel)``
 and ``element_phase_deg(channel)`` describe each channel's response, i.e.

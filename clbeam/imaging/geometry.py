@@ -1,4 +1,4 @@
-"""Frames and motion correction (SPEC §2).
+"""Frames and motion correction (docs/ping-format.md).
 
 Vessel frame: ``x`` forward, ``y`` to starboard, ``z`` down, origin at the
 array reference point.  The earth frame used for imaging has the same origin

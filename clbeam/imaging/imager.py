@@ -520,7 +520,7 @@ class Imager:
 
     def peak_rows(self, context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None, *,
                   refine=None) -> list:
-        """Rows of the peaks table for one ping (SPEC §3 step 7) with this imager's threshold and MLH
+        """Rows of the peaks table for one ping (docs/peaks.md) with this imager's threshold and MLH
         option (refined with ``refine``, see :func:`clbeam.imaging.peaks.peak_rows`)."""
         return peak_rows(context, cf_smooth, intensity, self.grid, threshold=self.options.threshold,
                          min_snr_db=self.options.min_snr_db, min_contrast_db=self.options.min_contrast_db,

@@ -1,7 +1,7 @@
 """Peak-table rows of one ping: the one builder for images in memory and in files.
 
 :func:`peak_rows` turns a smoothed CF image into the rows of the peaks table
-(SPEC §3 step 7): every coherence peak, or with ``mlh=True`` one detection
+(docs/peaks.md): every coherence peak, or with ``mlh=True`` one detection
 per main-lobe arc (:mod:`clbeam.imaging.mlh`).  What it needs of the ping
 besides the image is a :class:`PingContext`, which the
 :class:`~clbeam.imaging.imager.Imager` builds from a
@@ -117,7 +117,7 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
               threshold: float = PEAK_THRESHOLD, mlh: bool = False, position: str = "lobe", refine=None,
               min_snr_db: float | None = DEFAULT_MIN_SNR_DB,
               min_contrast_db: float | None = DEFAULT_MIN_CONTRAST_DB, **mlh_options) -> list[dict]:
-    """Rows of the peaks table for one ping (SPEC §3 step 7).
+    """Rows of the peaks table for one ping (docs/peaks.md).
 
     Parameters
     ----------

@@ -247,7 +247,7 @@ def _plateau_maxima(img: np.ndarray, top: np.ndarray, tied: np.ndarray) -> tuple
 
 def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float, intensity: float,
              navigation: dict | None = None) -> dict:
-    """One row of the peaks table (SPEC §3 step 7): position on the grid and in
+    """One row of the peaks table (docs/peaks.md): position on the grid and in
     the earth frame (m), smoothed CF, intensity (dB), and the ship's navigation
     at the ping (``ship_latitude_deg``, ``ship_longitude_deg``, ``ship_heading_deg``:
     the peak's own geographic position is the survey's job).
@@ -255,7 +255,7 @@ def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float
     Frames (docs/peaks.md): ``range_m`` and ``angle_deg`` are from the grid
     centre (``centre_y_m``, ``centre_z_m``, also in the row); ``y_m`` (starboard)
     and ``z_m`` (down) are in the earth frame from the array reference point,
-    rolled and heaved with the ship (SPEC §2)."""
+    rolled and heaved with the ship (docs/ping-format.md)."""
     th = np.deg2rad(angle_deg)
     row = {"ping": int(ping), "range_m": float(range_m), "angle_deg": float(angle_deg),
            "y_m": float(centre_yz_m[0] + range_m * np.sin(th)), "z_m": float(centre_yz_m[1] + range_m * np.cos(th)),

@@ -2,11 +2,11 @@
 
 Each ping is imaged on a polar grid of one angle, 0 degrees (nadir), with
 the :class:`~clbeam.imaging.imager.Imager`: the grid is earth-referenced, so roll
-and heave are compensated (SPEC §2), and its ranges are the trace's sample
+and heave are compensated (docs/ping-format.md), and its ranges are the trace's sample
 times, ``R_k = c t_k / 2`` with ``t_k = delay + k dt`` (:class:`TraceAxis`;
 ``dt`` is the ping file's sample interval ``1 / fs`` when that is a whole
 number of microseconds).  The coherent sum ``S`` over the ``M``
-contributing channels (SPEC §3 step 5) gives the trace (:class:`BeamTrace`):
+contributing channels (docs/imaging.md) gives the trace (:class:`BeamTrace`):
 the mean analytic signal ``S / M`` and its envelope ``|S| / M`` (0 where
 ``M = 0``).  Dividing by ``M`` keeps the amplitude of the channels' own
 scale (an echo of amplitude ``a`` on every channel gives ``a``) and does not

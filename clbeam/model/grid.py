@@ -1,4 +1,4 @@
-"""The polar image grid in the earth-referenced cross-track plane (SPEC §2).
+"""The polar image grid in the earth-referenced cross-track plane (docs/ping-format.md).
 
 Ranges from a centre (the source's nominal position unless given) and
 angles from nadir, positive to starboard; roll never moves the grid
@@ -19,7 +19,7 @@ MAX_GRID_CELLS = 2e9
 
 @dataclass(frozen=True)
 class PolarGrid:
-    """A polar image grid in the cross-track plane (SPEC §2).
+    """A polar image grid in the cross-track plane (docs/ping-format.md).
 
     Cell ``(i, j)`` sits at angle ``angles_deg[i]`` from nadir (positive to
     starboard) and range ``ranges_m[j]`` from ``centre_yz_m``:

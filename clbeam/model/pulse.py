@@ -44,7 +44,7 @@ class Pulse:
     waveform : numpy.ndarray or None
         Transmit waveform sampled at the ping's sample rate (takes precedence).
     delay_s : float
-        Time (s) of the replica's first sample after transmit start (SPEC §7
+        Time (s) of the replica's first sample after transmit start (docs/ping-format.md
         ``tx_delay``; negative for a wavelet centred on transmit start):
         pulse compression puts an echo at its arrival time plus this delay.
     """

@@ -3,7 +3,7 @@
 Piecewise linear between points, constant beyond the ends, with optional
 jumps at horizontal interfaces such as the seabed.  The ray tracer
 (:mod:`clbeam.imaging.raytrace`) follows rays through it; ping files carry
-it as ``svp_depth(svp)``, ``svp_speed(svp)`` (SPEC §7).
+it as ``svp_depth(svp)``, ``svp_speed(svp)`` (docs/ping-format.md).
 """
 
 from __future__ import annotations

@@ -501,7 +501,7 @@ def patch_reflections(pings_path, ranges, *, bandwidth_hz: float, absorption_db_
     Parameters
     ----------
     pings_path : path-like
-        The ping file (SPEC §7) the patches' images were made from.
+        The ping file (docs/ping-format.md) the patches' images were made from.
     ranges : sequence of (int, int)
         Patches as ping ranges ``start..stop - 1``.
     bandwidth_hz : float

@@ -34,7 +34,7 @@ class PingGeometry:
     along_m : float
         Distance run along the track since the first ping (m).
     roll_deg, pitch_deg, heave_m : float
-        Motion (SPEC §2 signs).
+        Motion (the signs of docs/ping-format.md).
     elements, source, centre : numpy.ndarray
         Receive elements ``(C, 3)``, source and array reference point (m).
     column : numpy.ndarray

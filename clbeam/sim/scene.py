@@ -11,7 +11,7 @@ validates its values on construction and names the scene key of a bad one
 anything: the TOML loader (:mod:`clbeam.sim.catalog`) builds them and every
 synthesiser of the simulator reads them.
 
-Frames (SPEC §2): vessel ``x`` forward, ``y`` starboard, ``z`` down; the
+Frames (docs/ping-format.md): vessel ``x`` forward, ``y`` starboard, ``z`` down; the
 track frame has ``x`` along the track from the first ping's position.
 """
 
@@ -181,7 +181,7 @@ class Motion:
     ``roll(t) = roll_mean + roll_amplitude · sin(2π t / roll_period)``;
     pitch and heave likewise with phases 1 and 2 rad so that the three are
     not in step.  Roll is positive starboard down, pitch positive bow up,
-    heave positive up (SPEC §2).  Pitch only steers the transmit beam
+    heave positive up (docs/ping-format.md).  Pitch only steers the transmit beam
     along-track (the elements lie on ``x = 0``); the imager ignores it.
     """
 

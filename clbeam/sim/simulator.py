@@ -1,4 +1,4 @@
-"""Element-level synthesis of multibeam sub-bottom profiler pings (SPEC §4, §7).
+"""Element-level synthesis of multibeam sub-bottom profiler pings (docs/simulator.md, docs/ping-format.md).
 
 The simulator builds what an SBP29-class sonar records on its 64 receive
 elements for a scene: buried pipelines (line scatterers), point scatterers,
@@ -8,7 +8,7 @@ backscatter model of a grain size per province), the nadir specular echoes of
 both interfaces, the first surface multiple and its doublet, and noise, with
 the ship moving along a track and rolling, pitching and heaving.
 
-Model (vessel frame ``x`` forward, ``y`` starboard, ``z`` down; SPEC §2)
+Model (vessel frame ``x`` forward, ``y`` starboard, ``z`` down; docs/ping-format.md)
 -----------------------------------------------------------------------
 A point scatterer of amplitude ``a`` (m) at ``r`` produces on element ``n``
 
@@ -379,7 +379,7 @@ class Simulator:
 
     # -- the dataset -----------------------------------------------------------------
     def dataset(self, *, progress: bool = False) -> xr.Dataset:
-        """Every prepared ping as a SPEC §7 dataset (with truth variables).
+        """Every prepared ping as a ping dataset (docs/ping-format.md) (with truth variables).
 
         Parameters
         ----------
@@ -415,7 +415,7 @@ class Simulator:
         return ds.merge(self._truth_dataset(truth))
 
     def _spec_values(self, motion: np.ndarray, nav: np.ndarray) -> dict:
-        """The SPEC §7 variables of the prepared pings (names of :data:`clbeam.io.schema.PING_VARIABLES`)."""
+        """The ping-file variables of the prepared pings (names of :data:`clbeam.io.schema.PING_VARIABLES`)."""
         sc, so, n_p = self.scene, self.scene.sonar, len(self.indices)
         start = np.datetime64(sc.survey.start_time, "ns")
         ev, sv = self.element_vessel, self.source_vessel
@@ -461,7 +461,7 @@ class Simulator:
 
 
 def simulate(scene, *, pings=None, seed: int = 0, progress: bool = False) -> xr.Dataset:
-    """Simulate the pings of a scene as a SPEC §7 ping dataset.
+    """Simulate the pings of a scene as a ping dataset (docs/ping-format.md).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Whole surveys: many pings imaged into georeferenced coherence peaks, a persistence map and objects.
 
 The flow of one ping (:class:`clbeam.imaging.imager.Imager`) mapped over
-every ping of many ping files (SPEC §7), one ping at a time so that memory
+every ping of many ping files (docs/ping-format.md), one ping at a time so that memory
 does not grow with the survey, resumable after any interruption, in one
 process or on a Dask cluster (Holland et al. 2024, Section III and
 Figs. 9-10).  See ``docs/survey.md``.

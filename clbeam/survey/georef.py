@@ -43,7 +43,7 @@ def peak_positions(latitude_deg, longitude_deg, heading_deg, y_m):
     """Latitude and longitude of points ``y_m`` to starboard of ping positions.
 
     The cross-track plane of a ping is vertical and perpendicular to its
-    heading, so a point ``y`` metres to starboard (SPEC §2) lies at
+    heading, so a point ``y`` metres to starboard (docs/ping-format.md) lies at
     horizontal distance ``|y|`` along the azimuth ``heading + 90`` degrees
     (``heading - 90`` for port, ``y < 0``), measured clockwise from true
     north.  The point is found on the WGS84 ellipsoid along that geodesic

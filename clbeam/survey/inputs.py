@@ -106,7 +106,7 @@ def _size_bytes(path: Path) -> int:
 def scan_inputs(paths, *, stop_on_error: bool = False) -> ScanResult:
     """Open and validate every input ping file once.
 
-    A file that cannot be opened or fails validation (SPEC §7) is logged by
+    A file that cannot be opened or fails validation (docs/ping-format.md) is logged by
     name and listed in :attr:`ScanResult.failures`; with ``stop_on_error``
     its :class:`~clbeam.errors.ClbeamError` is raised instead.
 

@@ -1,4 +1,4 @@
-"""The clbeam command (SPEC §8): contract names, outputs, one-line errors."""
+"""The clbeam command (docs/cli.md): contract names, outputs, one-line errors."""
 
 import subprocess
 import sys
@@ -125,7 +125,7 @@ def test_installed_command_runs_devices_and_help():
         assert opt in r.stdout
     from clbeam.imaging.engine import INTERP_MODES
 
-    assert "{auto," + ",".join(INTERP_MODES) + "}" in r.stdout  # the modes as a choice list (SPEC §8)
+    assert "{auto," + ",".join(INTERP_MODES) + "}" in r.stdout  # the modes as a choice list (docs/cli.md)
 
 
 def test_peaks_mlh_from_an_image_file_equal_those_written_while_imaging(ping_file, tmp_path):

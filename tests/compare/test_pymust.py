@@ -4,7 +4,7 @@ A 64-element phased array (PyMUST's P4-2v, 2.72 MHz, 1540 m/s) fires one
 element (a diverging wave; the others are off, delay NaN) at eight point
 scatterers from 10 to 70 wavelengths and out to ±60 degrees. PyMUST's
 ``simus`` writes the element signals, which another program's way of
-writing SPEC §7 files turns into a ping file: raw RF, the two-way pulse of
+writing ping files turns into a ping file: raw RF, the two-way pulse of
 ``getpulse`` as ``tx_waveform``, centred, so ``tx_delay`` is minus half its
 length. clbeam images it with its defaults; PyMUST's ``dasmtx`` beamforms the
 same analytic signal for the envelope comparison.
@@ -49,7 +49,7 @@ def scene():
 
 
 def ping_file(path, p, rf):
-    """The SPEC §7 file another program would write from PyMUST's output."""
+    """The ping file another program would write from PyMUST's output."""
     pulse, t = pymust.getpulse(p, 2)
     replica = np.interp(np.arange(0.0, t[-1], 1 / p.fs), t, pulse)
     y = (np.arange(p.Nelements) - (p.Nelements - 1) / 2) * p.pitch

@@ -1,4 +1,4 @@
-"""Ping files (SPEC §7): round trips in every storage form, and one clear
+"""Ping files (docs/ping-format.md): round trips in every storage form, and one clear
 error for every kind of bad file."""
 
 import numpy as np

@@ -27,7 +27,7 @@ from clbeam.seabed.nadir import NadirMeter, coherent_reflection, nadir_echoes, p
 from clbeam.sim import simulate
 from clbeam.sim.catalog import scene_from_mapping
 
-DENSITY, SPEED = 1.25, 0.98                      # Line 1's mud (SPEC §4)
+DENSITY, SPEED = 1.25, 0.98                      # Line 1's mud (docs/simulator.md)
 R_CLOSED = (DENSITY - 1 / SPEED) / (DENSITY + 1 / SPEED)
 BAND_HZ = 7000.0
 

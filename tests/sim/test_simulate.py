@@ -364,7 +364,7 @@ def test_line1_record_reaches_past_700_m_and_the_noise_is_at_the_stated_snr():
 
 
 # -- the file ------------------------------------------------------------------------------
-SPEC_VARIABLES = {
+FORMAT_VARIABLES = {
     "samples": (("ping", "channel", "sample"), None),
     "sample_rate": ((), "Hz"), "t0": (("ping",), "s"),
     "element_x": (("channel",), "m"), "element_y": (("channel",), "m"), "element_z": (("channel",), "m"),
@@ -388,7 +388,7 @@ def test_dataset_follows_the_ping_file_schema_and_round_trips(tmp_path, suffix):
     ds = simulate(scene)
     assert ds.attrs["clbeam_format"] == "ping-1"
     assert ds.samples.dtype == np.float32 and ds.samples.attrs["kind"] == "raw"
-    for name, (dims, units) in SPEC_VARIABLES.items():
+    for name, (dims, units) in FORMAT_VARIABLES.items():
         assert ds[name].dims == dims, name
         if units is not None:
             assert ds[name].attrs["units"] == units, name

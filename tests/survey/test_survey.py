@@ -2,7 +2,7 @@
 process, georeferencing against hand-computed positions, association,
 bad inputs, parameter locking.
 
-The line is the simulator's Line 1 (SPEC §4) cut to 12 pings recorded to
+The line is the simulator's Line 1 (docs/simulator.md) cut to 12 pings recorded to
 380 m, split over three files; the grid (0.5 m x 0.25 degree, 200-380 m,
 ±60 degrees) holds the seabed, pipeline A (y = -273 m, 51 degrees) and the
 seabed scatterers, at about 0.25 s a ping.
@@ -388,7 +388,7 @@ def test_without_navigation_the_along_track_distance_is_ping_time_times_speed(li
     assert "no navigation: no GeoJSON" in capsys.readouterr().out
     rows = read_peaks_csv(product_paths(out)["peaks_csv"])
     assert rows and "along_track_m" in rows[0] and "peak_latitude_deg" not in rows[0]
-    # pings 4 s apart (SPEC §4): 2 m/s gives 8 m a ping
+    # pings 4 s apart (docs/simulator.md): 2 m/s gives 8 m a ping
     for r in rows:
         assert r["along_track_m"] == pytest.approx(8.0 * r["ping"], abs=1e-9)
     assert not product_paths(out)["peaks_geojson"].exists()
@@ -410,7 +410,7 @@ def _detections_on_track(heading_deg, spacing_m, items):
 
 def test_association_groups_a_pipeline_into_one_object_and_leaves_isolated_peaks_alone():
     rng = np.random.default_rng(3)
-    spacing = 4 * 4.0 * KNOT_M_S                                     # 8.23 m: 4 kn, 4 s (SPEC §4)
+    spacing = 4 * 4.0 * KNOT_M_S                                     # 8.23 m: 4 kn, 4 s (docs/simulator.md)
     pipe = [(k, -120 + rng.uniform(-0.3, 0.3), 226 + rng.uniform(-0.2, 0.2)) for k in range(20) if k not in (7, 8)]
     crossing = [(k, 40 + k * spacing * math.tan(math.radians(12)), 226.0) for k in range(3, 15)]  # 1.75 m a ping
     isolated = [(int(k), y, 225.0) for k, y in zip(rng.integers(0, 20, 12), np.linspace(-300, 300, 12) + 7)]
@@ -466,7 +466,7 @@ def test_simulated_pipeline_is_one_object_along_its_true_position(line, referenc
     linked = np.unique(k[on_pipe][obj >= 0])
     assert int(ob["first_ping"]) <= linked[0] and int(ob["last_ping"]) >= linked[-1]
     assert int(ob["last_ping"]) - int(ob["first_ping"]) + 1 >= N_PINGS / 2
-    step = 4 * 4.0 * KNOT_M_S                                         # 4 kn, 4 s (SPEC §4)
+    step = 4 * 4.0 * KNOT_M_S                                         # 4 kn, 4 s (docs/simulator.md)
     assert float(ob["length_m"]) >= (int(ob["last_ping"]) - int(ob["first_ping"])) * step - 1e-6
     assert np.all(p["object"].values[p["cf"].values <= 0.4] == -1)
 

@@ -1,4 +1,4 @@
-"""Seafloor characterisation from the backscatter angular response (SPEC §5).
+"""Seafloor characterisation from the backscatter angular response (docs/avo.md).
 
 Fonseca, Mayer & Kraft (2005): stack per-ping angular responses into
 patches (:mod:`.stack`), compute AVO attributes and the gradient–intercept

@@ -1,6 +1,6 @@
 """AVO attributes of a stacked backscatter angular response (Fonseca et al. 2005).
 
-Conventions (SPEC §5): the angular response is backscatter strength (dB)
+Conventions (docs/avo.md): the angular response is backscatter strength (dB)
 against **incidence** angle ``phi`` from the vertical; the ranges are
 defined by **grazing** angle ``theta = 90 - phi``:
 
@@ -50,7 +50,7 @@ MIN_BINS = 2
 
 @dataclass(frozen=True)
 class AngularAttributes:
-    """AVO attributes of one patch (Fonseca et al. 2005; SPEC §5).
+    """AVO attributes of one patch (Fonseca et al. 2005; docs/avo.md).
 
     Strengths in dB, slopes in dB per degree of grazing angle, angles in
     degrees.  A value is NaN when its range holds fewer than two valid bins.
@@ -86,7 +86,7 @@ def range_mask(incidence_deg, grazing_range_deg: tuple[float, float]) -> np.ndar
     """Bins whose grazing angle ``90 - |incidence|`` lies in a range.
 
     ``(low, high]`` in grazing angle (closed at ``low`` when ``low`` is 5°),
-    so the three SPEC ranges partition grazing angles 5–90°.
+    so the three ranges partition grazing angles 5–90°.
 
     Parameters
     ----------
@@ -136,7 +136,7 @@ def gradient_intercept(near_db, far_db, near_incidence_deg, far_incidence_deg):
 
 
 def angular_attributes(incidence_deg, strength_db) -> AngularAttributes:
-    """AVO attributes of one stacked angular response (SPEC §5).
+    """AVO attributes of one stacked angular response (docs/avo.md).
 
     Parameters
     ----------

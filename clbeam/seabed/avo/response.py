@@ -1,4 +1,4 @@
-"""Per-ping backscatter angular responses from clbeam image files (SPEC §5).
+"""Per-ping backscatter angular responses from clbeam image files (docs/avo.md).
 
 For every ping of an image file (``intensity(ping, angle, range)`` on a
 polar grid centred on the source, angle from nadir positive to starboard)

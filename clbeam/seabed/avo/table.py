@@ -1,7 +1,7 @@
 """Per-patch AVO records and their CSV table (one row per patch).
 
 :func:`survey_records` runs the whole AVO chain on a list of stacked
-patches: attributes (SPEC §5), background trend over the survey, fluid
+patches: attributes (docs/avo.md), background trend over the survey, fluid
 factor and product, and optionally the model inversion; :func:`write_csv`
 writes the result.  Columns carry their units in their names.
 """

@@ -1,4 +1,4 @@
-"""Layered coherent forward model of the sub-bottom echo (Rakotonarivo et al., SPEC §6).
+"""Layered coherent forward model of the sub-bottom echo (Rakotonarivo et al.; docs/forward.md).
 
 A seabed of fluid layers (:mod:`.layers`, read from TOML by :mod:`.config`)
 with attenuation laws and their linearisation (:mod:`.attenuation`, eqs.

@@ -1,4 +1,4 @@
-"""AVO attributes (SPEC §5) against hand computations and scipy."""
+"""AVO attributes (docs/avo.md) against hand computations and scipy."""
 
 import math
 

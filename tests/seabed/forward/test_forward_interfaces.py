@@ -77,7 +77,7 @@ def test_eckart_and_fair_reflection_factors_against_the_closed_forms():
     k = 2 * math.pi * f / c
     p = 2 * k * sigma * cos                                  # eq. 5: 0.787 here
     assert rayleigh_parameter(f, sigma, c, cos) == pytest.approx(p, rel=1e-14)
-    # V_rough / V_smooth = exp(-P^2/2) (minus sign restored, SPEC §6) and exp(-(4/3 P)^2/2) (eq. 7)
+    # V_rough / V_smooth = exp(-P^2/2) (minus sign restored, docs/forward.md) and exp(-(4/3 P)^2/2) (eq. 7)
     assert reflection_roughness_factor(f, sigma, c, cos, "small") == pytest.approx(math.exp(-p * p / 2), rel=1e-14)
     assert reflection_roughness_factor(f, sigma, c, cos, "fair") == pytest.approx(math.exp(-(4 * p / 3) ** 2 / 2),
                                                                                 rel=1e-14)
