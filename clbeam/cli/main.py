@@ -23,6 +23,7 @@ from clbeam.cli import (
     devices,
     forward,
     image,
+    import_segy,
     peaks,
     profile,
     sediment_speed,
@@ -35,7 +36,7 @@ from clbeam.errors import ClbeamError
 #: exit status of bad input (one line on stderr)
 EXIT_BAD_INPUT = 2
 #: the subcommand modules, in the order ``clbeam --help`` lists them
-COMMANDS = (devices, image, peaks, simulate, demo, survey, profile, avo, forward, sediment_speed, bench)
+COMMANDS = (devices, image, peaks, simulate, demo, survey, profile, import_segy, avo, forward, sediment_speed, bench)
 
 
 def register(subparsers, command) -> argparse.ArgumentParser:
