@@ -1,4 +1,4 @@
-"""Ping files (SPEC §7): validation and a streaming reader, from disk or memory.
+"""Ping files (docs/ping-format.md): validation and a streaming reader, from disk or memory.
 
 A :class:`PingFile` opens a NetCDF4 (HDF5) or Zarr ping file lazily, checks
 every variable once against :data:`clbeam.io.schema.PING_VARIABLES` and then
@@ -58,7 +58,7 @@ def open_dataset(path: str | os.PathLike) -> xr.Dataset:
 
 
 class PingDataset:
-    """A validated SPEC §7 dataset read one ping at a time.
+    """A validated ping dataset (docs/ping-format.md) read one ping at a time.
 
     Parameters
     ----------
@@ -108,7 +108,8 @@ class PingDataset:
         (``None`` when it is optional and absent)."""
         spec = PING_VARIABLES[name]
         if name not in self.ds.variables:
-            self._need(not (spec.required if required is None else required), f"missing variable '{name}' (SPEC §7)")
+            self._need(not (spec.required if required is None else required),
+                       f"missing variable '{name}' (see docs/ping-format.md)")
             return None
         v = self.ds[name]
         self._need(v.dims in spec.dims,
@@ -157,7 +158,7 @@ class PingDataset:
             self._need(s.dtype == si.dtype, f"'samples_r' ({s.dtype}) and 'samples_i' ({si.dtype}) must share a dtype")
             self._split = True
         else:
-            raise self._err("missing variable 'samples' (or the pair 'samples_r', 'samples_i') (SPEC §7)")
+            raise self._err("missing variable 'samples' (or the pair 'samples_r', 'samples_i') (see docs/ping-format.md)")
         self._need(np.issubdtype(s.dtype, np.number), f"variable '{s.name}' has dtype {s.dtype}, expected numbers")
         self.kind = self._read_kind(s)
         is_complex = np.issubdtype(s.dtype, np.complexfloating) or self._split
@@ -184,7 +185,7 @@ class PingDataset:
         kinds = {str(k) for _, k in places}
         if self._split:
             raw = [where for where, k in places if str(k) == "raw"]
-            self._need(not raw, f"the pair 'samples_r'/'samples_i' is the analytic signal (SPEC §7) but "
+            self._need(not raw, f"the pair 'samples_r'/'samples_i' is the analytic signal (see docs/ping-format.md) but "
                        f"{raw[0] if raw else ''} has kind='raw': store raw pressure as one real 'samples', or set "
                        "kind='analytic'")
             return "analytic"
@@ -220,7 +221,7 @@ class PingDataset:
                        f"expected within {MAX_OFFSET_M:g} m (a hull-mounted array)")
 
     def _read_motion(self) -> None:
-        """Roll, heave, pitch, heading, navigation and ping times."""
+        """Roll, heave, pitch, heading, navigation, draft and ping times."""
         self._roll = self._per_ping("roll", 0.0)
         self._need(bool(np.all(np.abs(self._roll) <= MAX_ABS_ROLL_DEG)),
                    f"variable 'roll' reaches {np.abs(self._roll).max():g} degrees, expected within ±{MAX_ABS_ROLL_DEG:g}")
@@ -231,11 +232,27 @@ class PingDataset:
         self._lon = self._per_ping("longitude", None)
         if self._lat is not None:
             self._need(bool(np.all(np.abs(self._lat) <= 90)), "variable 'latitude' is outside ±90 degrees")
+        self._draft = self._per_ping("draft", None)
+        if self._draft is not None:
+            self._need(bool(np.all(self._draft >= 0)), f"variable 'draft' reaches {self._draft.min():g} m, expected "
+                       "the depth below the sea surface (>= 0 m)")
+        self._warn_defaults()
         self._time = None
         tv = self._var("ping_time")
         if tv is not None:
             self._need(np.issubdtype(tv.dtype, np.datetime64), f"variable 'ping_time' has dtype {tv.dtype}, expected datetime64")
             self._time = tv.values
+
+    def _warn_defaults(self) -> None:
+        """One warning for each optional variable whose absence changes the products: roll, navigation."""
+        if "roll" not in self.ds.variables:
+            log.warning("%s: no variable 'roll': the pings are imaged without roll correction (roll 0 degrees)",
+                        self.name)
+        missing = [n for n in ("latitude", "longitude") if n not in self.ds.variables]
+        if missing:
+            log.warning("%s: no variable %s: the pings have no position (the peaks' ship_latitude_deg and "
+                        "ship_longitude_deg are empty; a survey places them by ping time and --speed)",
+                        self.name, " or ".join(f"'{n}'" for n in missing))
 
     def _per_ping(self, name: str, default):
         a = self._real(name)
@@ -334,6 +351,7 @@ class PingDataset:
             heading_deg=at(self._heading), latitude_deg=at(self._lat), longitude_deg=at(self._lon),
             time=None if self._time is None else self._time[i], pulse=self.pulse, index=i,
             element_gain_db=self.element_gain_db, element_phase_deg=self.element_phase_deg, svp=self.svp,
+            draft_m=at(self._draft),
         )
 
 
@@ -348,7 +366,7 @@ def _open_plain(path: Path):
 
 
 class PingFile(PingDataset):
-    """A validated ping file (SPEC §7) read one ping at a time.
+    """A validated ping file (docs/ping-format.md) read one ping at a time.
 
     Parameters
     ----------
@@ -379,7 +397,7 @@ class PingFile(PingDataset):
 
 
 def pings_from_dataset(ds: xr.Dataset, name: str = "dataset") -> PingDataset:
-    """The pings of a SPEC §7 dataset in memory, with the checks of :class:`PingFile`.
+    """The pings of a ping dataset (docs/ping-format.md) in memory, with the checks of :class:`PingFile`.
 
     Parameters
     ----------

@@ -1,11 +1,12 @@
-"""Writing ping files (SPEC §7): pings to a dataset, a dataset to disk.
+"""Writing ping files (docs/ping-format.md): pings to a dataset, a dataset to disk.
 
 :func:`dataset_from_pings` is the inverse of
 :func:`clbeam.io.pingfile.pings_from_dataset`: a sequence of
 :class:`~clbeam.model.ping.Ping` sharing one array and one sampling becomes
-one SPEC §7 dataset, every variable with the units and long name of
-:data:`clbeam.io.schema.PING_VARIABLES`.  :func:`write_ping_file` stores a
-dataset as NetCDF4 or Zarr.
+one ping dataset, every variable with the units, long name and standard
+name of :data:`clbeam.io.schema.PING_VARIABLES`.  :func:`write_ping_file`
+stores a dataset as NetCDF4 or Zarr, CF- and ACDD-compliant
+(:mod:`clbeam.io.conventions`).
 """
 
 from __future__ import annotations
@@ -18,14 +19,35 @@ import numpy as np
 import xarray as xr
 
 from clbeam.errors import ClbeamError, require
-from clbeam.io.schema import FORMAT_ATTRIBUTE, PING_FORMAT, ping_variable
+from clbeam.io.conventions import coverage_attributes, discovery_attributes
+from clbeam.io.schema import FORMAT_ATTRIBUTE, PING_FORMAT, PING_VARIABLES, ping_variable
 
 
-def write_ping_file(ds: xr.Dataset, path: str | os.PathLike) -> Path:
-    """Write a SPEC §7 dataset to NetCDF4 (HDF5, complex allowed) or to Zarr
-    when ``path`` ends in ``.zarr``; the global ``clbeam_format`` is set."""
+def write_ping_file(ds: xr.Dataset, path: str | os.PathLike, *, split_complex: bool = True) -> Path:
+    """Write a ping dataset to NetCDF4 (HDF5) or to Zarr when ``path`` ends in ``.zarr``.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A ping dataset (:func:`dataset_from_pings`, a simulation, an import).
+    path : str or path-like
+        ``.nc`` or ``.zarr``.
+    split_complex : bool
+        Store complex ``samples`` (the analytic signal) as the pair
+        ``samples_r``, ``samples_i`` (docs/ping-format.md; CF has no complex type);
+        ``False`` keeps one complex variable (netCDF-C's complex compound in
+        NetCDF4, readable by both engines).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.  The file has the global ``clbeam_format``, the CF and ACDD
+        attributes (:func:`clbeam.io.conventions.discovery_attributes`, the
+        time and area the pings cover) and every ping-file variable its units,
+        long name and standard name where it had none.
+    """
     p = Path(path)
-    ds = ds.copy()
+    ds = with_cf_attributes(_split_samples(ds) if split_complex else ds.copy())
     ds.attrs[FORMAT_ATTRIBUTE] = PING_FORMAT
     if p.suffix == ".zarr":
         ds.to_zarr(p, mode="w")
@@ -35,6 +57,57 @@ def write_ping_file(ds: xr.Dataset, path: str | os.PathLike) -> Path:
     else:
         ds.to_netcdf(p, engine="h5netcdf")
     return p
+
+
+def _split_samples(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` with complex ``samples`` as the pair ``samples_r``, ``samples_i`` (its ``kind`` on both)."""
+    if "samples" not in ds.variables or not np.issubdtype(ds["samples"].dtype, np.complexfloating):
+        return ds.copy()
+    s = ds["samples"]
+    kind = s.attrs.get("kind", "analytic")
+    pair = {f"samples_{part}": (s.dims, getattr(s, attr).values, {**PING_VARIABLES[f"samples_{part}"].attrs(), "kind": kind})
+            for part, attr in (("r", "real"), ("i", "imag"))}
+    return ds.drop_vars("samples").assign(pair)
+
+
+def with_cf_attributes(ds: xr.Dataset) -> xr.Dataset:
+    """A copy of a ping dataset with the CF and ACDD attributes of a clbeam ping file.
+
+    Every variable of :data:`clbeam.io.schema.PING_VARIABLES` gets the
+    table's units, long name and standard name where it has none of its own
+    (a time keeps the units xarray encodes it with); the ``ping`` coordinate a
+    long name; the dataset the global attributes of
+    :func:`clbeam.io.conventions.discovery_attributes` and
+    :func:`clbeam.io.conventions.coverage_attributes`.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A ping dataset.
+
+    Returns
+    -------
+    xarray.Dataset
+        The copy (the arrays shared, not copied).
+    """
+    ds = ds.copy()
+    for name in ds.variables:
+        spec = PING_VARIABLES.get(name)
+        if spec is None:
+            continue
+        own = dict(ds[name].attrs)
+        table = {k: v for k, v in spec.attrs().items()
+                 if not (k == "units" and np.issubdtype(ds[name].dtype, np.datetime64))}
+        ds[name].attrs = {**table, **own}
+    if "ping" in ds.variables and "long_name" not in ds["ping"].attrs:
+        ds["ping"].attrs["long_name"] = "ping number"
+    cover = coverage_attributes(*(ds[n].values if n in ds.variables else None
+                                  for n in ("ping_time", "latitude", "longitude")))
+    ds.attrs.update(discovery_attributes(ds.attrs, title="clbeam ping file",
+                                         summary="Element-level time series of multibeam sub-bottom sonar pings with "
+                                                 "their array geometry, motion, navigation and pulse (clbeam ping-1 "
+                                                 "format).", history="ping file written"), **cover)
+    return ds
 
 
 def _equal(a, b) -> bool:
@@ -72,10 +145,10 @@ def _pulse_variables(pulse) -> dict:
 
 
 def _optional_variables(pings) -> dict:
-    """The optional SPEC §7 variables the pings carry: navigation, times, channel mask, profile, responses."""
+    """The optional ping-file variables the pings carry: navigation, draft, times, channel mask, profile, responses."""
     values = {}
     for name, attr in (("pitch", "pitch_deg"), ("heading", "heading_deg"), ("latitude", "latitude_deg"),
-                       ("longitude", "longitude_deg")):
+                       ("longitude", "longitude_deg"), ("draft", "draft_m")):
         per = _per_ping(pings, attr)
         if per is not None:
             values[name] = per
@@ -96,7 +169,7 @@ def _optional_variables(pings) -> dict:
 
 
 def dataset_from_pings(pings, *, samples_dtype=None, attrs: dict | None = None) -> xr.Dataset:
-    """One SPEC §7 dataset holding ``pings``.
+    """One ping dataset (docs/ping-format.md) holding ``pings``.
 
     Parameters
     ----------

@@ -6,8 +6,13 @@ store's group ``peaks``, to ``X.peaks.csv`` and to ``X.peaks.geojson``;
 ``objects``, ``X.objects.csv`` and ``X.objects.geojson``, and the lines to
 ``lines``, ``X.lines.csv`` and ``X.lines.geojson``.  Text products are
 written under temporary names and renamed, so a reader sees the old file or
-the new one, never a part.  Floats are written with full round-trip
-precision; an unknown value is an empty CSV cell and a GeoJSON ``null``.
+the new one, never a part.  The CSV's floats have full round-trip
+precision, the GeoJSON's the precision the values have (positions to 1e-7
+degree, about 1 cm; metres to the millimetre: :func:`geojson_number`); a
+peak's GeoJSON point carries its depth below the sea surface as a negative
+third coordinate (RFC 7946 §3.1.1: an elevation, here above the sea surface,
+not the ellipsoid).  An unknown value is an empty CSV cell and a GeoJSON
+``null``.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import json
+import logging
 import math
 import os
 import warnings
@@ -22,7 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from clbeam.io.schema import TIME_CALENDAR, TIME_UNITS
 from clbeam.io.survey_store import temporary_path, write_atomic
+
+log = logging.getLogger(__name__)
 
 PEAK_BLOCK_ROWS = 65536
 """Peak rows buffered before they are appended to the Zarr group ``peaks``."""
@@ -34,14 +43,15 @@ PEAK_TABLE = {
     "angle_deg": (np.float64, "angle from nadir, positive to starboard", "degree"),
     "y_m": (np.float64, "cross-track offset, positive to starboard", "m"),
     "z_m": (np.float64, "depth below the array reference point", "m"),
+    "depth_m": (np.float64, "depth below the sea surface: z_m plus the draft (0 where none is given)", "m"),
     "cf": (np.float64, "smoothed coherence factor at the peak", "1"),
-    "intensity_db": (np.float64, "intensity |S|^2 at the peak", "dB re input units squared"),
-    "snr_db": (np.float64, "intensity over the ping's noise floor", "dB"),
-    "contrast_db": (np.float64, "echo over the mean clutter around it", "dB"),
+    "intensity_db": (np.float64, "intensity |S|^2 at the peak (dB re the squared sample units)", "1"),
+    "snr_db": (np.float64, "intensity over the ping's noise floor (dB)", "1"),
+    "contrast_db": (np.float64, "echo over the mean clutter around it (dB)", "1"),
     "pfa": (np.float64, "probability that incoherent noise gives this smoothed CF or more, per cell", "1"),
     "file_index": (np.int32, "index of the input file (attribute input_files)", "1"),
     "file_ping": (np.int32, "ping index within the input file", "1"),
-    "time_s": (np.float64, "ping time, seconds since 1970-01-01 UTC", "s"),
+    "time_s": (np.float64, "ping time (UTC)", TIME_UNITS),
     "ping_latitude_deg": (np.float64, "latitude of the ping", "degree_north"),
     "ping_longitude_deg": (np.float64, "longitude of the ping", "degree_east"),
     "heading_deg": (np.float64, "heading of the ping (course over ground where the file has none)", "degree"),
@@ -53,7 +63,14 @@ PEAK_TABLE = {
     "object": (np.int64, "associated object (-1: none, or CF at or below the map threshold)", "1"),
     "line": (np.int64, "line the detection lies on (-1: none, or CF at or below the map threshold)", "1"),
 }
-"""Columns of the group ``peaks``: dtype, long name, units."""
+"""Columns of the group ``peaks``: dtype, long name, units (UDUNITS; levels in dB have units "1")."""
+#: CF attributes of the group ``peaks`` besides long name and units
+PEAK_CF_ATTRIBUTES = {
+    "time_s": {"standard_name": "time", "calendar": TIME_CALENDAR},
+    "ping_latitude_deg": {"standard_name": "latitude"}, "ping_longitude_deg": {"standard_name": "longitude"},
+    "peak_latitude_deg": {"standard_name": "latitude"}, "peak_longitude_deg": {"standard_name": "longitude"},
+    "depth_m": {"standard_name": "depth", "positive": "down"},
+}
 NAV_COLUMNS = ("ping_latitude_deg", "ping_longitude_deg", "heading_deg", "peak_latitude_deg",
                "peak_longitude_deg", "easting_m", "northing_m")
 """Peak columns that need navigation."""
@@ -85,6 +102,47 @@ def json_number(v):
     return v if math.isfinite(v) else None
 
 
+#: decimals of a GeoJSON number by the end of its column's name: latitudes and longitudes to 1e-7 degree
+#: (1.1 cm), metres to the millimetre, other angles to 1e-4 degree (1.7 mm at 1 km), seconds to the millisecond
+GEOJSON_DECIMALS = (("_latitude_deg", 7), ("_longitude_deg", 7), ("_m", 3), ("_deg", 4), ("_s", 3))
+#: significant digits of the GeoJSON's other floats (coherence, levels in dB, probabilities)
+GEOJSON_DIGITS = 6
+
+
+def geojson_number(column: str, v):
+    """A value of column ``column`` for GeoJSON, at the precision it has.
+
+    Parameters
+    ----------
+    column : str
+        The column's name: its ending picks the decimals (:data:`GEOJSON_DECIMALS`);
+        other floats keep :data:`GEOJSON_DIGITS` significant digits.
+    v : number
+        The value.
+
+    Returns
+    -------
+    int, float or None
+        Integers as such, NaN and infinities as ``None``.
+    """
+    v = json_number(v)
+    if not isinstance(v, float):
+        return v
+    for ending, decimals in GEOJSON_DECIMALS:
+        if column.endswith(ending):
+            return round(v, decimals)
+    return float(f"{v:.{GEOJSON_DIGITS}g}")
+
+
+def geojson_position(longitude_deg: float, latitude_deg: float, depth_m: float | None = None) -> list:
+    """A GeoJSON position: longitude and latitude to 1e-7 degree and, where the depth below the sea
+    surface is known, its negative (m, to the centimetre) as the third coordinate (RFC 7946 §3.1.1)."""
+    pos = [round(float(longitude_deg), 7), round(float(latitude_deg), 7)]
+    if depth_m is not None and math.isfinite(depth_m):
+        pos.append(round(-float(depth_m), 2) + 0.0)  # + 0.0: no "-0.0"
+    return pos
+
+
 class PeakTableWriter:
     """Streams peak rows to the group ``peaks`` of a store, a CSV and a GeoJSON.
 
@@ -100,6 +158,10 @@ class PeakTableWriter:
         Write the GeoJSON (peaks with a position become WGS84 points).
     attrs : dict
         Attributes of the group ``peaks``.
+    draft_m : numpy.ndarray, optional
+        ``(n_survey_pings,)`` depth of the array reference point below the sea
+        surface (m; NaN where unknown): ``depth_m`` is ``z_m`` plus the
+        ping's draft.  Without it (or where it is NaN) the draft is 0, with one warning.
 
     Notes
     -----
@@ -107,8 +169,11 @@ class PeakTableWriter:
     files into place) or, on an error, :meth:`abort`.
     """
 
-    def __init__(self, output: Path, files: dict, csv_columns: list, geojson: bool, attrs: dict):
+    def __init__(self, output: Path, files: dict, csv_columns: list, geojson: bool, attrs: dict, *,
+                 draft_m: np.ndarray | None = None):
         self.output, self.attrs = output, attrs
+        self.draft_m = None if draft_m is None else np.asarray(draft_m, dtype=np.float64)
+        self._warned_draft = False
         self.csv_columns = csv_columns
         self.tmp = {k: temporary_path(p) for k, p in files.items()}
         self.files = files
@@ -126,10 +191,13 @@ class PeakTableWriter:
         self.zarr_started = False
 
     def add(self, cols: dict) -> None:
-        """Append rows: ``cols`` holds an equal-length array for every :data:`PEAK_TABLE` column."""
+        """Append rows: ``cols`` holds an equal-length array for every :data:`PEAK_TABLE` column
+        (``depth_m`` may be left out: it is ``z_m`` plus the draft)."""
         n = len(cols["ping"])
         if n == 0:
             return
+        if "depth_m" not in cols:
+            cols = {**cols, "depth_m": np.asarray(cols["z_m"], dtype=np.float64) + self._drafts(cols["ping"])}
         for row in zip(*(cols[c] for c in self.csv_columns)):
             self.csv.writerow([csv_cell(v) for v in row])
         if self.geo_fh is not None:
@@ -140,13 +208,26 @@ class PeakTableWriter:
         if self.n_buffered >= PEAK_BLOCK_ROWS:
             self._flush()
 
+    def _drafts(self, pings) -> np.ndarray:
+        """The draft (m) of each row's survey ping; 0 where unknown, with one warning."""
+        pings = np.asarray(pings, dtype=np.int64)
+        draft = np.full(pings.shape, np.nan) if self.draft_m is None else self.draft_m[pings]
+        unknown = ~np.isfinite(draft)
+        if unknown.any() and not self._warned_draft:
+            log.warning("%s: no draft for %s: the peaks' depths below the sea surface (depth_m, the GeoJSON's "
+                        "third coordinate) take the array reference point at the surface (draft 0 m)",
+                        self.output.name, "some pings" if self.draft_m is not None else "the pings")
+            self._warned_draft = True
+        return np.where(unknown, 0.0, draft)
+
     def _add_features(self, cols: dict, n: int) -> None:
         for k in range(n):
             lat, lon = cols["peak_latitude_deg"][k], cols["peak_longitude_deg"][k]
             if not (math.isfinite(lat) and math.isfinite(lon)):
                 continue
-            feat = {"type": "Feature", "geometry": {"type": "Point", "coordinates": [float(lon), float(lat)]},
-                    "properties": {c: json_number(cols[c][k]) for c in self.csv_columns}}
+            feat = {"type": "Feature",
+                    "geometry": {"type": "Point", "coordinates": geojson_position(lon, lat, cols["depth_m"][k])},
+                    "properties": {c: geojson_number(c, cols[c][k]) for c in self.csv_columns}}
             self.geo_fh.write(("" if self.first_feature else ",\n") + json.dumps(feat))
             self.first_feature = False
 
@@ -158,7 +239,7 @@ class PeakTableWriter:
         data = {}
         for k, (dtype, long_name, units) in PEAK_TABLE.items():
             arr = np.concatenate(self.buffer[k]).astype(dtype) if self.buffer[k] else np.zeros(0, dtype=dtype)
-            data[k] = (("peak",), arr, {"long_name": long_name, "units": units})
+            data[k] = (("peak",), arr, {"long_name": long_name, "units": units, **PEAK_CF_ATTRIBUTES.get(k, {})})
         # every write gives the attributes: xarray's append mode replaces them with the dataset's
         ds = xr.Dataset(data, attrs=self.attrs)
         with warnings.catch_warnings():
@@ -211,8 +292,9 @@ def write_feature_tables(output: Path, paths: tuple, group: str, rows: list, col
     columns : list of str
         Columns: ``integers`` as integers, strings as such, the rest floats.
     coords : list or None
-        Per feature, the ``[longitude, latitude]`` (degree) of its path: a
-        GeoJSON LineString (a Point for one position).  ``None``: no
+        Per feature, the ``[longitude, latitude]`` (degree; a third value: the
+        depth below the sea surface, m) of its path: a GeoJSON LineString (a
+        Point for one position), to 1e-7 degree (:func:`geojson_position`).  ``None``: no
         navigation, and an existing GeoJSON is removed.
     title : str
         Name of the GeoJSON feature collection.
@@ -233,9 +315,10 @@ def write_feature_tables(output: Path, paths: tuple, group: str, rows: list, col
     if coords is not None:
         feats = []
         for xy, r in zip(coords, rows):
+            xy = [geojson_position(*p) for p in xy]
             geom = {"type": "LineString", "coordinates": xy} if len(xy) > 1 else {"type": "Point", "coordinates": xy[0]}
             feats.append({"type": "Feature", "geometry": geom, "properties": {
-                c: r[c] if isinstance(r[c], str) else json_number(r[c]) for c in columns}})
+                c: r[c] if isinstance(r[c], str) else geojson_number(c, r[c]) for c in columns}})
         write_atomic(geojson_path, json.dumps({"type": "FeatureCollection", "name": title, "features": feats}).encode())
     else:
         with contextlib.suppress(FileNotFoundError):

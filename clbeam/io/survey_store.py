@@ -35,6 +35,7 @@ import numpy as np
 
 from clbeam import __version__
 from clbeam.errors import ClbeamError, SurveyError, require
+from clbeam.io.conventions import coverage_attributes, utc_now
 from clbeam.io.images import ImageWriter
 from clbeam.io.schema import FORMAT_ATTRIBUTE, IMAGE_FORMAT
 from clbeam.model.grid import PolarGrid
@@ -53,10 +54,12 @@ PRODUCT_SUFFIXES = ("peaks.csv", "peaks.geojson", "objects.csv", "objects.geojso
 
 _LEDGER_NAME = re.compile(r"^(\d{9})\.json$")
 
-#: per-ping variables of a survey store besides those of an image file: (long name, units, dtype)
+#: the per-ping time of a survey store (an image file's ``ping_time``; seconds since 1970 UTC, CF)
+SURVEY_TIME_VARIABLE = "time"
+#: per-ping variables of a survey store besides those of an image file: (long name, units, dtype); -1 in the
+#: integer ones: the ping is not imaged (their ``valid_min`` is 0)
 SURVEY_PING_VARIABLES = {
     "imaged": ("ping imaged and committed to the ledger", None, bool),
-    "time": ("time of transmission (UTC)", None, np.float64),
     "file_index": ("index of the ping's input file (attribute input_files)", "1", np.int32),
     "file_ping": ("index of the ping within its input file", "1", np.int32),
     "n_peaks": ("coherence peaks of the ping", "1", np.int32),
@@ -274,11 +277,11 @@ def _bookkeeping(n_pings: int) -> dict:
             data = np.full(n_pings, np.nan)
         else:
             data = np.full(n_pings, -1, dtype=dtype)
-        a = {"long_name": long_name}
+        a = {"long_name": long_name, "coverage_content_type": "auxiliaryInformation"}
         if units:
             a["units"] = units
-        if name == "time":
-            a.update(units="seconds since 1970-01-01T00:00:00", calendar="proleptic_gregorian")
+        if np.issubdtype(dtype, np.integer):
+            a["valid_min"] = np.asarray(0, dtype=dtype)
         out[name] = (("ping",), data, a)
     return out
 
@@ -308,16 +311,20 @@ def create_store(output: Path, *, grid: PolarGrid, n_pings: int, variables, para
     import xarray as xr
 
     tmp = output.parent / f".{output.name}.creating-{os.getpid()}-{uuid.uuid4().hex[:8]}.zarr"
-    # the image format too: xarray's append below keeps only these, and image readers check it
+    # the image format too: image readers check it
     attrs = {FORMAT_ATTRIBUTE: IMAGE_FORMAT, "clbeam_survey": SURVEY_FORMAT, "survey_parameters": json.dumps(params),
              "clbeam_version": __version__, "input_files": json.dumps(list(input_names)),
-             "survey_complete": False, "source": "clbeam survey"}
+             "survey_complete": False, "source": f"clbeam {__version__} survey", "title": "clbeam survey store",
+             "summary": "A survey's multibeam sub-bottom sonar pings: per-ping navigation and bookkeeping, the "
+                        "cross-track images where asked, and the coherence peaks, objects and lines found in them "
+                        "(groups peaks, objects, lines)."}
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            ImageWriter(tmp, grid, n_pings, variables, attrs).close()
-            # xarray's append mode replaces the root attributes with the dataset's: give them again
-            xr.Dataset(_bookkeeping(n_pings), attrs=attrs).to_zarr(tmp, mode="a", consolidated=False)
+            ImageWriter(tmp, grid, n_pings, variables, attrs, time_variable=SURVEY_TIME_VARIABLE).close()
+            # xarray's append mode replaces the root attributes with the dataset's: give the writer's
+            # (with its CF and ACDD ones) again
+            xr.Dataset(_bookkeeping(n_pings), attrs=read_root_attrs(tmp)).to_zarr(tmp, mode="a", consolidated=False)
         consolidate(tmp)
         require(is_survey_store(tmp), SurveyError, f"{output.name}: the new store lacks its attributes")
         (tmp / LEDGER_DIR).mkdir(parents=True)
@@ -358,8 +365,11 @@ def update_store(output, variables: dict, attrs: dict) -> None:
     variables : dict of str to numpy.ndarray
         ``(ping,)`` values of per-ping variables; one the store lacks (a
         store made by an older clbeam) is left out, with a log message.
+        ``time`` (seconds since 1970 UTC), ``latitude`` and ``longitude``
+        (degree) also give the ACDD coverage attributes.
     attrs : dict
-        Root attributes to set.
+        Root attributes to set; one whose value is ``None`` (not known) is
+        removed.  ``date_modified`` is set to now.
     """
     import zarr
 
@@ -369,7 +379,18 @@ def update_store(output, variables: dict, attrs: dict) -> None:
             log.info("%s has no variable %s (made by an older clbeam): not written", Path(output).name, name)
             continue
         root[name][:] = values
-    root.attrs.update(attrs)
+    seconds = variables.get(SURVEY_TIME_VARIABLE)
+    times = None
+    if seconds is not None:
+        s = np.asarray(seconds, dtype=np.float64)
+        ns = np.round(np.where(np.isfinite(s), s, 0.0) * 1e9).astype(np.int64)
+        times = np.where(np.isfinite(s), ns.astype("datetime64[ns]"), np.datetime64("NaT", "ns"))
+    new = {**attrs, "date_modified": utc_now(),
+           **coverage_attributes(times, variables.get("latitude"), variables.get("longitude"))}
+    for key, value in new.items():
+        if value is None:
+            root.attrs.pop(key, None)
+    root.attrs.update({k: v for k, v in new.items() if v is not None})
     consolidate(output)
 
 

@@ -1,4 +1,4 @@
-"""One ping in memory: element time series, geometry, motion, pulse (SPEC §7).
+"""One ping in memory: element time series, geometry, motion, pulse (docs/ping-format.md).
 
 The reader (:mod:`clbeam.io.pingfile`) and the simulator build :class:`Ping`
 objects; the imager consumes them.  Nothing here touches disk.
@@ -39,6 +39,10 @@ class Ping:
         ``(channel,)`` bool, False for dead channels.
     roll_deg, heave_m : float
         Motion: roll (degrees, starboard down positive), heave (m, up positive).
+    draft_m : float or None
+        Depth of the array reference point below the sea surface (m): the
+        earth frame's ``z`` plus the draft is the depth below the surface;
+        ``None``: not given.
     svp : clbeam.imaging.raytrace.SoundSpeedProfile or None
         Sound-speed profile from ``svp_depth(svp)`` (m, earth-frame ``z``
         below the array reference point) and ``svp_speed(svp)`` (m/s).
@@ -69,6 +73,7 @@ class Ping:
     element_phase_deg: np.ndarray | None = None
     svp: SoundSpeedProfile | None = None
     extras: dict = field(default_factory=dict)
+    draft_m: float | None = None
 
     @property
     def n_channels(self) -> int:
