@@ -31,7 +31,7 @@ HIGH, MEDIUM = 3, 2
 
 
 def full_pings(kind="raw", n=2):
-    """Pings with every optional SPEC §7 variable: navigation, draft, time, profile, mask, channel responses."""
+    """Pings with every optional ping-file variable: navigation, draft, time, profile, mask, channel responses."""
     out = []
     for i in range(n):
         p = point_ping(polar_point(40 + 5 * i, 10 * i), record_s=0.09, roll_deg=i, heave_m=0.1 * i, kind=kind)
