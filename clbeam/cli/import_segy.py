@@ -1,4 +1,4 @@
-"""``clbeam import-segy``: a sonar's multichannel SEG-Y export into a ping file (SPEC §7)."""
+"""``clbeam import-segy``: a sonar's multichannel SEG-Y export into a ping file (docs/ping-format.md)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ from clbeam.cli.options import progress, require_extra
 NAME = "import-segy"
 HELP = "convert multichannel SEG-Y (one trace per element, one ensemble per ping) into a ping file"
 DESCRIPTION = ("Read a multichannel SEG-Y file, one trace per receive element and one ensemble per ping, and write "
-               "a ping file (SPEC §7).  The trace-header mapping (docs/import.md) says where the sample interval, "
-               "t0, element positions, motion, navigation and sound speed sit; --mapping replaces entries of it.  "
+               "a ping file (see clbeam docs ping-format).  The trace-header mapping (see clbeam docs import) says "
+               "where the sample interval, t0, element positions, motion, navigation and sound speed sit; --mapping "
+               "replaces entries of it.  "
                "The pulse and the source position come from the options, else from name=value lines of the "
                "textual header (as clbeam writes them), else (the pulse) from the binary header's sweep fields.")
 
@@ -16,9 +17,10 @@ DESCRIPTION = ("Read a multichannel SEG-Y file, one trace per receive element an
 def add_arguments(p) -> None:
     """The arguments of ``clbeam import-segy``."""
     p.add_argument("segy", metavar="IN.sgy", help="multichannel SEG-Y file")
-    p.add_argument("-o", "--output", required=True, metavar="PINGS.nc", help="ping file to write (.nc or .zarr)")
+    p.add_argument("-o", "--output", required=True, metavar="PINGS.nc",
+                   help="ping file to write (.nc or .zarr; see clbeam docs ping-format)")
     p.add_argument("--mapping", default=None, metavar="MAP.toml",
-                   help="TOML file of trace-header mapping entries replacing the defaults (docs/import.md)")
+                   help="TOML file of trace-header mapping entries replacing the defaults (see clbeam docs import)")
     p.add_argument("--pulse", type=float, nargs=3, default=None, metavar=("F0", "F1", "DURATION"),
                    help="LFM pulse: start and end frequency (Hz) and length (s)")
     p.add_argument("--tx-delay", type=float, default=None, metavar="S",

@@ -1,4 +1,4 @@
-"""A ping file (SPEC §7) to multichannel SEG-Y: one trace per element, one ensemble per ping.
+"""A ping file (docs/ping-format.md) to multichannel SEG-Y: one trace per element, one ensemble per ping.
 
 :func:`export_segy` is the inverse of :func:`clbeam.io.segy_import.import_segy`
 with the same :class:`~clbeam.io.segy_mapping.SegyMapping`: every ping

@@ -1,8 +1,8 @@
-"""Multichannel SEG-Y to a ping file (SPEC §7): what a sonar exports, made imageable.
+"""Multichannel SEG-Y to a ping file (docs/ping-format.md): what a sonar exports, made imageable.
 
 A sonar's element-level SEG-Y export holds one trace per receive element and
 one ensemble of traces per ping.  :func:`read_segy_pings` reads such a file
-into a SPEC §7 dataset: the trace headers give each ping's time axis,
+into a ping dataset (docs/ping-format.md): the trace headers give each ping's time axis,
 motion, navigation and sound speed and each element's position, as the
 :class:`~clbeam.io.segy_mapping.SegyMapping` says; what the headers cannot
 carry (the pulse, the source position, the replica's delay) comes from
@@ -438,7 +438,7 @@ def _channel_valid(f, traces: np.ndarray) -> np.ndarray | None:
 
 def read_segy_pings(path: str | os.PathLike, *, mapping: SegyMapping | None = None,
                     options: SegyImportOptions | None = None, progress=None) -> tuple[xr.Dataset, dict]:
-    """Read a multichannel SEG-Y file (one trace per element, one ensemble per ping) into a SPEC §7 dataset.
+    """Read a multichannel SEG-Y file (one trace per element, one ensemble per ping) into a ping dataset.
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 
 A sonar's multichannel SEG-Y export holds one trace per receive element and
 one ensemble of traces per ping.  :class:`SegyMapping` says, for each ping
-file variable (SPEC §7) that varies by trace or by ping, which trace-header
+file variable (docs/ping-format.md) that varies by trace or by ping, which trace-header
 field holds it, which SEG-Y scalar field (if any) scales it, and the factor
 from the scaled header value to the ping file's units::
 

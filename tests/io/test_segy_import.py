@@ -373,3 +373,40 @@ def test_a_segy_copy_of_float64_samples_images_within_float32_rounding(tmp_path,
     i_target = a.intensity[25, 100]
     assert i_target == pytest.approx(a.intensity.max(), rel=1e-3)
     np.testing.assert_allclose(b.intensity, a.intensity, rtol=0, atol=(2 * np.sqrt(2) * u + 2 * u * u) * i_target)
+
+
+# -- the documentation ------------------------------------------------------------------------
+DOC = __import__("pathlib").Path(__file__).resolve().parents[2] / "docs" / "import.md"
+
+
+def test_the_mapping_table_of_the_docs_is_the_default_mapping():
+    from clbeam.io.segy_mapping import DEFAULT_ENTRIES
+
+    rows = {}
+    for line in DOC.read_text(encoding="utf-8").splitlines():
+        cells = [c.strip() for c in line.split("|")[1:-1]] if line.startswith("| `") else []
+        if len(cells) == 6:
+            rows[cells[0].strip("`")] = cells
+    assert set(DEFAULT_ENTRIES) <= set(rows)
+    for name, entry in DEFAULT_ENTRIES.items():
+        field, scalar, scale = rows[name][2], rows[name][3], rows[name][4]
+        if entry is None:
+            assert field.startswith("not mapped"), name
+            continue
+        assert field.startswith(f"`{entry.field}` ({entry.byte}-{entry.byte + entry.n_bytes - 1})"), name
+        assert scalar == ("" if entry.scalar is None else f"`{entry.scalar}` ({TRACE_FIELDS[entry.scalar]}-"
+                          f"{TRACE_FIELDS[entry.scalar] + 1})"), name
+        if entry.scale is None:
+            assert scale == "`CoordinateUnits`", name
+        elif name not in ("ensemble", "channel"):
+            assert float(scale.split()[0]) == entry.scale, name
+
+
+def test_the_docs_mapping_example_loads(tmp_path):
+    import re
+
+    example = re.search(r"```toml\n(.*?)```", DOC.read_text(encoding="utf-8"), flags=re.S).group(1)
+    (tmp_path / "vendor.toml").write_text(example)
+    m = load_mapping(tmp_path / "vendor.toml")
+    assert (m.get("ensemble").field, m.get("element_y").field, m.get("roll").field) == ("CDP", "GroupX", "UnassignedInt1")
+    assert m.get("t0").scalar is None and m.get("heading") is None and m.get("element_z") is None
