@@ -8,8 +8,10 @@ import time
 from pathlib import Path
 
 from clbeam.cli.options import (
+    add_compression_options,
     add_grid_options,
     add_imaging_options,
+    compression_from_args,
     grid_from_args,
     options_from_args,
     progress,
@@ -35,6 +37,7 @@ def add_arguments(p) -> None:
                         "(default 1: no stacking)")
     add_grid_options(p)
     add_imaging_options(p)
+    add_compression_options(p)
 
 
 def _check(args, opts) -> None:
@@ -90,7 +93,8 @@ def run(args) -> int:
                  "source_file": Path(args.pings).name, "clbeam_version": __version__}
         t0 = time.perf_counter()
         out = Path(args.output)
-        writer = ImageWriter(out, grid, len(pings), variables, attrs, background=True)
+        writer = ImageWriter(out, grid, len(pings), variables, attrs, background=True,
+                             compression=compression_from_args(args))
         try:
             with writer:
                 peaks = _image_pings(pings, imager, writer, stack, "s_r" in variables, args.quiet)

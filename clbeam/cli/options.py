@@ -204,6 +204,38 @@ def grid_from_args(args, max_range_default: float):
                              min_range_m=args.min_range, angles_deg=tuple(args.angles))
 
 
+def deflate_level(text: str) -> int:
+    """A ``--compress`` level: an integer from 1 to 9."""
+    try:
+        level = int(text)
+    except ValueError:
+        level = None
+    if level is None or not 1 <= level <= 9:
+        raise argparse.ArgumentTypeError(f"the deflate level must be an integer from 1 to 9, got {text!r}")
+    return level
+
+
+def add_compression_options(p: argparse.ArgumentParser) -> None:
+    """``--compress [LEVEL]`` and ``--pack-cf``: how the image file's arrays are stored."""
+    g = p.add_argument_group("image file size")
+    g.add_argument("--compress", type=deflate_level, nargs="?", const=1, default=None, metavar="LEVEL",
+                   help="deflate the image arrays (zlib with byte shuffle) at LEVEL 1 (fast, the default) to 9 "
+                        "(small); default: uncompressed (Zarr: its default codec)")
+    g.add_argument("--pack-cf", action="store_true",
+                   help="store cf and cf_smooth as 16-bit integers with a CF scale_factor (error below 8e-6, "
+                        "half the bytes before deflate)")
+
+
+def compression_from_args(args):
+    """:class:`~clbeam.io.images.ImageCompression` from :func:`add_compression_options`'s arguments
+    (``None``: neither given)."""
+    from clbeam.io.images import ImageCompression
+
+    if args.compress is None and not args.pack_cf:
+        return None
+    return ImageCompression(level=0 if args.compress is None else args.compress, pack_cf=args.pack_cf)
+
+
 def remove_partial(path: Path) -> None:
     """Delete an output file or Zarr folder left incomplete by an error."""
     import shutil

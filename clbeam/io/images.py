@@ -253,8 +253,7 @@ class ImageWriter:
                 packed = name in self._packed
                 attributes = self._array_attrs(name)
                 if packed:  # JSON numbers: a CF reader unpacks a Zarr store's CF as float64
-                    attributes.update(scale_factor=float(CF_SCALE_FACTOR), add_offset=float(CF_ADD_OFFSET),
-                                      _FillValue=int(CF_FILL))
+                    attributes.update(scale_factor=1.0 / 65534.0, add_offset=0.5, _FillValue=int(CF_FILL))
                 root.create_array(name, shape=(self.n_pings, n_a, n_r), chunks=(1, n_a, n_r),
                                   dtype=self._dtype(name), fill_value=CF_FILL if packed else 0,
                                   dimension_names=IMAGE_DIMS, attributes=attributes, **self._zarr_codecs())
