@@ -14,6 +14,7 @@ DELAY = (127, 128, 131)  # DelayRecordingTime, with the time scalar -10: 12.7, 1
 ROLL_UDEG = (1_250_000, -2_500_000, 0)  # roll, micro-degrees
 HEADING_UDEG = (90_000_000, 91_500_000, 359_999_999)
 HEAVE_MM = (12, -7, 0)  # SourceSurfaceElevation, with ElevationScalar -1000: millimetres
+DRAFT_MM = (5000, 5012, 4990)  # SourceDepth, with ElevationScalar -1000: millimetres
 SPEED = (1500, 1501, 1499)  # WeatheringVelocity, m/s
 LAT_MAS = (123_480_000, 123_480_360, 123_480_720)  # SourceY, 1/1000 arc-second (scalar -1000): 34.3 degrees
 LON_MAS = (-431_280_000, -431_280_072, -431_280_144)  # SourceX: -119.8 degrees
@@ -55,7 +56,7 @@ def write_vendor_segy(path, *, text=None, shuffle=True, sweep=(0, 0, 0), trace_i
             h = {T.FieldRecord: ENSEMBLES[i], T.TraceNumber: j + 1, T.TRACE_SAMPLE_INTERVAL: trace_interval,
                  T.TRACE_SAMPLE_COUNT: N_S, T.DelayRecordingTime: DELAY[i], T.ScalarTraceHeader: -10,
                  T.offset: int(y_units[j]), T.ReceiverGroupElevation: int(element_z_mm()[j]),
-                 T.SourceSurfaceElevation: HEAVE_MM[i], T.ElevationScalar: -1000,
+                 T.SourceSurfaceElevation: HEAVE_MM[i], T.SourceDepth: DRAFT_MM[i], T.ElevationScalar: -1000,
                  T.WeatheringVelocity: SPEED[i], T.UnassignedInt1: ROLL_UDEG[i], T.UnassignedInt2: HEADING_UDEG[i],
                  T.SourceX: LON_MAS[i], T.SourceY: LAT_MAS[i], T.SourceGroupScalar: -1000, T.CoordinateUnits: 2,
                  T.TraceIdentificationCode: 2 if (i, j) == DEAD else 1, T.TimeBaseCode: 4,

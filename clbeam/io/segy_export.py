@@ -43,7 +43,8 @@ log = logging.getLogger(__name__)
 
 #: ping attribute of each per-ping mapping entry
 _PING_ATTRS = {"t0": "t0_s", "sound_speed": "sound_speed_m_s", "roll": "roll_deg", "pitch": "pitch_deg",
-               "heave": "heave_m", "heading": "heading_deg", "latitude": "latitude_deg", "longitude": "longitude_deg"}
+               "heave": "heave_m", "heading": "heading_deg", "draft": "draft_m", "latitude": "latitude_deg",
+               "longitude": "longitude_deg"}
 _ELEMENT_COLUMNS = {"element_x": 0, "element_y": 1, "element_z": 2}
 
 

@@ -55,7 +55,8 @@ TEXT_VARIABLES = ("pulse_f0", "pulse_f1", "pulse_duration", "tx_delay", "source_
 _TEXT_VALUE = re.compile(r"\b(" + "|".join(TEXT_VARIABLES) + r")\s*=\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)",
                          re.IGNORECASE)
 #: per-ping variables of the mapping (one value per ensemble) and per-element ones (one value per channel)
-PER_PING = ("t0", "sample_interval", "sound_speed", "roll", "pitch", "heave", "heading", "latitude", "longitude")
+PER_PING = ("t0", "sample_interval", "sound_speed", "roll", "pitch", "heave", "heading", "draft", "latitude",
+            "longitude")
 PER_CHANNEL = ("element_x", "element_y", "element_z")
 
 
@@ -486,7 +487,8 @@ def read_segy_pings(path: str | os.PathLike, *, mapping: SegyMapping | None = No
     data = {"sample_rate": 1.0 / dt, "t0": values["t0"],
             **_element_positions(values, traces.shape[1], options, name), **pulse, **scalars,
             "sound_speed": _sound_speed(values, mapping, options, traces.shape[0], name),
-            **{k: values[k] for k in ("roll", "pitch", "heave", "heading", "latitude", "longitude") if k in values}}
+            **{k: values[k] for k in ("roll", "pitch", "heave", "heading", "draft", "latitude", "longitude")
+               if k in values}}
     if times is not None:
         data["ping_time"] = times
     if valid is not None:

@@ -156,13 +156,13 @@ class HeaderEntry:
 #: the ensemble and channel keys, and the variables, a mapping may name
 REQUIRED_ENTRIES = ("ensemble", "channel", "sample_interval", "t0")
 OPTIONAL_ENTRIES = ("element_x", "element_y", "element_z", "sound_speed", "roll", "pitch", "heave", "heading",
-                    "latitude", "longitude")
+                    "draft", "latitude", "longitude")
 #: entries that are switches (True: read/write the standard fields; False: leave them out)
 SWITCH_ENTRIES = ("ping_time", "channel_valid")
 #: units of each mapped quantity in the ping file (for the documentation and messages)
 UNITS = {"ensemble": "", "channel": "", "sample_interval": "s", "t0": "s", "element_x": "m", "element_y": "m",
          "element_z": "m", "sound_speed": "m/s", "roll": "degree", "pitch": "degree", "heave": "m",
-         "heading": "degree", "latitude": "degree", "longitude": "degree"}
+         "heading": "degree", "draft": "m", "latitude": "degree", "longitude": "degree"}
 
 #: the default mapping (``docs/import.md`` explains each choice)
 DEFAULT_ENTRIES: dict[str, HeaderEntry | None] = {
@@ -179,6 +179,7 @@ DEFAULT_ENTRIES: dict[str, HeaderEntry | None] = {
     "pitch": None,
     "heave": HeaderEntry("SourceSurfaceElevation", 1.0, "ElevationScalar"),
     "heading": HeaderEntry("UnassignedInt2", 1e-6),
+    "draft": HeaderEntry("SourceDepth", 1.0, "ElevationScalar"),  # rev 1: source depth below surface
     "latitude": HeaderEntry("SourceY", None, "SourceGroupScalar"),
     "longitude": HeaderEntry("SourceX", None, "SourceGroupScalar"),
 }

@@ -19,6 +19,7 @@ from scenes import point_ping, polar_point
 from segy_files import (
     DEAD,
     DELAY,
+    DRAFT_MM,
     ENSEMBLES,
     HEADING_UDEG,
     HEAVE_MM,
@@ -104,6 +105,7 @@ def test_every_variable_of_a_segyio_written_file_is_imported_as_written(vendor_f
     np.testing.assert_allclose(ds["element_z"].values, -element_z_mm() * 1e-3, atol=1e-15)  # elevation up, z down
     np.testing.assert_array_equal(ds["element_x"].values, 0.0)
     np.testing.assert_allclose(ds["heave"].values, np.array(HEAVE_MM) * 1e-3, atol=1e-15)
+    np.testing.assert_allclose(ds["draft"].values, np.array(DRAFT_MM) * 1e-3, atol=1e-15)
     np.testing.assert_array_equal(ds["sound_speed"].values, SPEED)
     np.testing.assert_allclose(ds["roll"].values, np.array(ROLL_UDEG) / 1e6, atol=1e-12)
     np.testing.assert_allclose(ds["heading"].values, np.array(HEADING_UDEG) / 1e6, atol=1e-12)
@@ -251,6 +253,7 @@ def simulated(tmp_path_factory):
     valid[1, 10] = False
     ds["channel_valid"] = (("ping", "channel"), valid)
     ds = ds.assign_coords(ping=[40, 41])
+    ds["draft"] = (("ping",), np.array([5.0, 5.123456]))
     src, sgy, back = out / "src.nc", out / "copy.sgy", out / "back.nc"
     write_ping_file(ds, src)
     export_segy(src, sgy)
@@ -260,6 +263,7 @@ def simulated(tmp_path_factory):
 
 #: half the resolution of each variable's default field (with the scalar the exporter picks)
 HALF_STEP = {"element_y": 0.5e-7, "element_z": 0.5e-4, "roll": 0.5e-6, "heading": 0.5e-6, "heave": 0.5e-4,
+             "draft": 0.5e-4,
              "latitude": 0.5e-3 / 3600, "longitude": 0.5e-3 / 3600}
 
 
@@ -315,7 +319,7 @@ def test_export_logs_a_rounded_sound_speed_and_a_finer_mapping_keeps_it(tmp_path
                for r in caplog.records)
     back, _ = read_segy_pings(tmp_path / "c.sgy")
     assert float(back["sound_speed"][0]) == 1522.0  # whole m/s, the error the warning names
-    fine = mapping_from_dict({"sound_speed": {"field": "SourceDepth", "scale": 1e-6}})
+    fine = mapping_from_dict({"sound_speed": {"field": "ShotPoint", "scale": 1e-6}})
     export_segy(pings_from_dataset(ds), tmp_path / "d.sgy", mapping=fine)
     back, _ = read_segy_pings(tmp_path / "d.sgy", mapping=fine)
     assert float(back["sound_speed"][0]) == pytest.approx(1522.4, abs=5e-7)
