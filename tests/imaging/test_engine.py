@@ -195,3 +195,85 @@ def test_record_shorter_than_the_taps_is_a_clear_error(cl_engine, ref_engine):
     for eng in (cl_engine, ref_engine):
         with pytest.raises(GridError, match="10 samples, fewer than the 16 taps of interpolation mode 'lanczos8'"):
             eng.beamform(inp, grid, interp="lanczos8")
+
+
+def test_launch_tiles_cover_every_block_row_once_in_range_row_order():
+    """Against enumerating them: for each block of angles, the range rows from its windows' smallest first to
+    largest end (empty windows left out), ordered by range row, then block; random windows and block sizes."""
+    from clbeam.imaging.engine.opencl import launch_tiles
+
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        lanes = int(rng.choice([1, 4, 16]))
+        n = lanes * int(rng.integers(0, 25))
+        first = rng.integers(0, 60, n)
+        window = np.stack([first, np.maximum(first + rng.integers(-8, 40, n), 0)], axis=1).astype(np.int32)
+        expected = []
+        for b in range(n // lanes):
+            w = window[b * lanes:(b + 1) * lanes]
+            w = w[w[:, 1] > w[:, 0]]
+            if len(w):
+                expected += [(b * lanes, row) for row in range(w[:, 0].min(), w[:, 1].max())]
+        expected.sort(key=lambda t: (t[1], t[0]))
+        got = launch_tiles(window, lanes)
+        assert got.dtype == np.int32
+        assert [tuple(t) for t in got] == expected
+
+
+def test_host_arrays_are_reused_only_once_nothing_else_refers_to_them():
+    from clbeam.imaging.engine.opencl import HostArrays
+
+    pool = HostArrays()
+    a = pool.empty((6, 7), np.float32)
+    first = id(a)
+    assert id(pool.empty((6, 7), np.float32)) != first            # held by ``a``: a new array
+    view = a[1:]
+    del a
+    assert id(pool.empty((6, 7), np.float32)) != first            # a view of it still refers to it
+    del view
+    again = pool.zeros((6, 7), np.float32)
+    assert id(again) == first and not again.any()                 # let go: handed out again, zeroed
+    assert pool.empty((7, 6), np.float32).shape == (7, 6)         # another shape: a new array
+    small = HostArrays(max_bytes=1000)
+    kept = [small.empty((100,), np.float64) for _ in range(3)]    # 800 bytes each: the pool keeps the newest
+    assert sum(a.nbytes for a in small._arrays) <= 1000 and all(k.shape == (100,) for k in kept)
+
+
+@pytest.mark.parametrize("beams", [None, "auto"])
+def test_a_held_result_keeps_its_values_through_later_calls(beams):
+    """The engine reuses its host arrays once let go: a result still held is never written by a later call
+    of the same shapes, whose values are those of a fresh engine; the read-back counts every output's bytes."""
+    from clbeam.imaging.engine.beams import BeamSampling
+
+    inp_a, inp_b = random_input(seed=1), random_input(seed=2)
+    grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=1.0, min_range_m=5.0, max_range_m=40.0,
+                             angles_deg=(-60.0, 60.0))
+    sampling = BeamSampling() if beams else None
+    engine = OpenCLEngine()
+    held = engine.beamform(inp_a, grid, outputs=("intensity", "cf"), beams=sampling)
+    copy = held.intensity.copy(), held.cf.copy()
+    for _ in range(3):
+        engine.beamform(inp_b, grid, outputs=("intensity", "cf"), beams=sampling)
+    np.testing.assert_array_equal(held.intensity, copy[0])
+    np.testing.assert_array_equal(held.cf, copy[1])
+    fresh = OpenCLEngine().beamform(inp_b, grid, outputs=("intensity", "cf"), beams=sampling)
+    before = engine.readback.n_bytes
+    again = engine.beamform(inp_b, grid, outputs=("intensity", "cf"), beams=sampling)
+    np.testing.assert_array_equal(again.intensity, fresh.intensity)
+    np.testing.assert_array_equal(again.cf, fresh.cf)
+    assert engine.readback.n_bytes - before >= 2 * grid.n_cells * 4   # the images' two float32 planes at least
+    assert not engine.readback.pending and np.isnan(engine.readback.device_s)   # no profiling: no time
+
+
+def test_a_profiling_engine_times_its_copies():
+    """With profiling the read-back's device time is that of its copies: positive and at most the call's."""
+    import time
+
+    grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=1.0, min_range_m=5.0, max_range_m=40.0,
+                             angles_deg=(-60.0, 60.0))
+    engine = OpenCLEngine(profiling=True)
+    t0 = time.perf_counter()
+    engine.beamform(random_input(seed=1), grid, outputs=("intensity", "cf"))
+    wall = time.perf_counter() - t0
+    assert engine.readback.n_bytes == 2 * grid.n_cells * 4
+    assert 0 < engine.readback.device_s < wall and engine.readback.throughput_gb_s() > 0

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,6 +43,48 @@ CPU_LAYOUT = (16, 1)
 GPU_LAYOUT = (1, 64)
 #: fraction of the device's global memory one tile of outputs may use
 TILE_MEMORY_FRACTION = 0.25
+
+
+#: bytes of host arrays an engine keeps for reuse at most (its last calls' results, once let go)
+HOST_POOL_BYTES = 512 << 20
+
+
+class HostArrays:
+    """Host arrays for an engine's results and scratch, each reused once nothing but this pool refers to it.
+
+    A fresh array's pages are mapped on its first write, which can cost more than the device's copy into it
+    (on a virtual machine 70 MB of fresh pages took 27-250 ms to copy into, touched ones 13-22 ms); a ping's
+    images are let go before the next ping's are made, so their pages serve the next ping's.  An array that
+    anything else refers to (a caller, a view of it, a pending copy's event) is never handed out again.
+    """
+
+    #: references to an array of the pool that nothing else holds: the pool's list, the loop's name and
+    #: ``sys.getrefcount``'s argument
+    FREE_REFERENCES = 3
+
+    def __init__(self, max_bytes: int = HOST_POOL_BYTES):
+        self.max_bytes = max_bytes
+        self._arrays: list = []
+
+    def empty(self, shape: tuple, dtype) -> np.ndarray:
+        """An array of ``shape`` and ``dtype`` (its values arbitrary): a free one of the pool, else a new one."""
+        dtype, shape = np.dtype(dtype), tuple(int(n) for n in shape)
+        for k in range(len(self._arrays)):
+            arr = self._arrays[k]
+            if arr.shape == shape and arr.dtype == dtype and sys.getrefcount(arr) <= self.FREE_REFERENCES:
+                self._arrays.append(self._arrays.pop(k))  # the most recently handed out last
+                return arr
+        arr = np.empty(shape, dtype=dtype)
+        self._arrays.append(arr)
+        while len(self._arrays) > 1 and sum(a.nbytes for a in self._arrays) > self.max_bytes:
+            self._arrays.pop(0)   # the oldest leaves the pool (whoever holds it keeps it)
+        return arr
+
+    def zeros(self, shape: tuple, dtype) -> np.ndarray:
+        """As :meth:`empty`, filled with zeros."""
+        arr = self.empty(shape, dtype)
+        arr.fill(0)
+        return arr
 
 
 def list_devices() -> list:
@@ -112,12 +155,19 @@ class OpenCLEngine(Engine):
     layout : (int, int), optional
         Cells per work-item (1, 2, 4, 8 or 16 vector lanes) and work-items per
         work-group; default by device type (:data:`CPU_LAYOUT`, :data:`GPU_LAYOUT`).
+    profiling : bool
+        Time the device's commands (:attr:`readback` then gives the copies' device time).
+
+    Attributes
+    ----------
+    readback : Readback
+        The device-to-host copies so far (bytes; their device time with ``profiling``).
     """
 
     name = "opencl"
 
     def __init__(self, device=None, precision: str | None = None, max_tile_cells: int | None = None,
-                 layout: tuple[int, int] | None = None):
+                 layout: tuple[int, int] | None = None, profiling: bool = False):
         cl = pyopencl()
         precision = precision or "float32"
         require(precision in ("float32", "float64"), OptionError,
@@ -129,7 +179,10 @@ class OpenCLEngine(Engine):
         self.precision = precision
         self.real = np.float64 if precision == "float64" else np.float32
         self.ctx = cl.Context([self.device])
-        self.queue = cl.CommandQueue(self.ctx)
+        self.queue = cl.CommandQueue(
+            self.ctx, properties=cl.command_queue_properties.PROFILING_ENABLE if profiling else 0)
+        self.readback = Readback()
+        self.host = HostArrays()
         self._kernels: dict = {}
         self._buffers: dict = {}
         self._data_key = None  # (data token, scale, baseband) of the data buffer's contents
@@ -151,11 +204,12 @@ class OpenCLEngine(Engine):
         return device_label(self.device)
 
     def release(self) -> None:
-        """Free the device buffers (the compiled programs are kept)."""
+        """Free the device buffers and the host arrays kept for reuse (the compiled programs are kept)."""
         with self._lock:
             for buf in self._buffers.values():
                 buf.release()
             self._buffers.clear()
+            self.host = HostArrays()
             self._data_key = None
 
     def _fresnel_range(self, offsets_m: np.ndarray, samples_per_m: float) -> float:
@@ -215,6 +269,12 @@ class OpenCLEngine(Engine):
             self._buffers[name] = buf
         return buf
 
+    def read_into(self, host: np.ndarray, buffer, offset_bytes: int = 0) -> None:
+        """Queue the copy of ``host.nbytes`` from ``buffer`` at ``offset_bytes`` into the contiguous ``host``
+        (waited for by the call's ``finish``), counted in :attr:`readback`."""
+        event = pyopencl().enqueue_copy(self.queue, host, buffer, src_offset=offset_bytes, is_blocking=False)
+        self.readback.add(event, host.nbytes)
+
     def upload(self, name: str, array: np.ndarray):
         cl = pyopencl()
         a = np.ascontiguousarray(array)
@@ -255,6 +315,7 @@ class OpenCLEngine(Engine):
             for a0 in range(0, grid.shape[0], launch.rows):
                 self._run_tile(launch, out, a0)
             self.queue.finish()
+            self.readback.settle()
         return out.sums()
 
     def _prepare(self, inp, grid, mode, outs, range_window_m, scale: float) -> "_Launch":
@@ -301,7 +362,7 @@ class OpenCLEngine(Engine):
         data = np.asarray(inp.data)
         if mode.baseband:
             data = baseband(data, inp.centre_frequency_hz, inp.sample_rate_hz)
-        inter = np.empty((inp.n_channels, inp.n_samples, 2), dtype=self.real)
+        inter = self.host.empty((inp.n_channels, inp.n_samples, 2), self.real)
         np.multiply(data.real, scale, out=inter[..., 0])
         np.multiply(data.imag, scale, out=inter[..., 1])
         self._data_key = None  # a failed upload leaves no key behind
@@ -335,6 +396,35 @@ class OpenCLEngine(Engine):
 
 
 @dataclass
+class Readback:
+    """The engine's device-to-host copies so far: their bytes and, on a profiling queue, their device time
+    (NaN otherwise).  A copy's event holds its host array until :meth:`settle` (an event let go before its
+    copy ends would wait for it), which each call does after its queue's ``finish``."""
+
+    n_bytes: int = 0
+    device_s: float = 0.0
+    pending: list = field(default_factory=list)
+
+    def add(self, event, n_bytes: int) -> None:
+        """Count a queued copy of ``n_bytes``."""
+        self.n_bytes += int(n_bytes)
+        self.pending.append(event)
+
+    def settle(self) -> None:
+        """Add the finished copies' device time and let their events go."""
+        for event in self.pending:
+            try:
+                self.device_s += (event.profile.end - event.profile.start) * 1e-9
+            except pyopencl().Error:  # the queue does not profile
+                self.device_s = float("nan")
+        self.pending = []
+
+    def throughput_gb_s(self) -> float:
+        """Bytes over device time (GB/s; NaN without profiling)."""
+        return self.n_bytes / self.device_s / 1e9 if self.device_s > 0 else float("nan")
+
+
+@dataclass
 class _Launch:
     """What every tile of one call shares: the kernel, its launch shape, the
     per-angle tables and windows, and the leading kernel arguments."""
@@ -360,17 +450,18 @@ class _Outputs:
         self.engine, real = engine, engine.real
         self.n_angles, self.n_ranges = n_a, n_r = grid.shape
         self.full = {}
+        host = engine.host
         if "intensity" in outs:
-            self.full["intensity"] = np.empty((n_a, n_r), dtype=real)
+            self.full["intensity"] = host.empty((n_a, n_r), real)
         if "cf" in outs:
-            self.full["cf"] = np.empty((n_a, n_r), dtype=real)
+            self.full["cf"] = host.empty((n_a, n_r), real)
         if "sums" in outs:
-            self.full.update(s=np.empty((2, n_a, n_r), dtype=real), q=np.empty((n_a, n_r), dtype=real),
-                             m=np.empty((n_a, n_r), dtype=np.int32))
+            self.full.update(s=host.empty((2, n_a, n_r), real), q=host.empty((n_a, n_r), real),
+                             m=host.empty((n_a, n_r), np.int32))
             if apodize:
-                self.full["w"] = np.empty((n_a, n_r), dtype=real)
+                self.full["w"] = host.empty((n_a, n_r), real)
         if "signature" in outs:
-            self.full["g"] = np.empty((n_a, n_r), dtype=real)
+            self.full["g"] = host.empty((n_a, n_r), real)
         self.bufs = {name: engine.buffer("out_" + name, planes * rows * n_r * (4 if name == "m" else real().itemsize)
                                           if name in self.full else 16) for name, planes in self.PLANES.items()}
 
@@ -387,15 +478,13 @@ class _Outputs:
                                    self.PLANES[name] * na_pad * self.n_ranges * arr.itemsize)
 
     def read(self, a0: int, na: int, na_pad: int) -> None:
-        """Copy a tile's results into rows ``a0 .. a0 + na`` of the host arrays."""
-        cl, queue = pyopencl(), self.engine.queue
+        """Queue the copies of a tile's results into rows ``a0 .. a0 + na`` of the host arrays: one per output
+        plane, straight into place, not waited for (the queue runs in order: the next tile's commands start
+        after them; the call's ``finish`` waits for the last)."""
         for name, arr in self.full.items():
-            if name == "s":
-                host = np.empty((2, na_pad, self.n_ranges), dtype=arr.dtype)
-                cl.enqueue_copy(queue, host, self.bufs[name], is_blocking=True)
-                arr[:, a0:a0 + na] = host[:, :na]
-            else:
-                cl.enqueue_copy(queue, arr[a0:a0 + na], self.bufs[name], is_blocking=True)
+            planes = [arr[0, a0:a0 + na], arr[1, a0:a0 + na]] if name == "s" else [arr[a0:a0 + na]]
+            for k, plane in enumerate(planes):
+                self.engine.read_into(plane, self.bufs[name], k * na_pad * self.n_ranges * arr.itemsize)
 
     def sums(self) -> Sums:
         """The results as :class:`Sums`."""
@@ -477,9 +566,10 @@ def launch_tiles(window: np.ndarray, local_angles: int) -> np.ndarray:
     nonempty = blocks[:, :, 1] > blocks[:, :, 0]
     lo = np.where(nonempty, blocks[:, :, 0], np.iinfo(np.int32).max).min(axis=1)
     hi = np.where(nonempty, blocks[:, :, 1], 0).max(axis=1)
-    counts = np.maximum(hi - lo, 0)
+    counts = np.maximum(hi - lo, 0).astype(np.int64)
     first = np.repeat(np.arange(n) * local_angles, counts)
-    rows = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi) if b > a] or [np.zeros(0, dtype=np.int64)])
+    # each block's rows lo .. hi - 1, all blocks at once (a point list has one block per 16 points)
+    rows = np.arange(int(counts.sum())) + np.repeat(lo.astype(np.int64) - (np.cumsum(counts) - counts), counts)
     tiles = np.stack([first, rows], axis=1).astype(np.int32)
     return tiles[np.lexsort((tiles[:, 0], tiles[:, 1]))]
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from clbeam.imaging.engine.beams import BeamPlan, consistent_supports
-from clbeam.imaging.engine.clsupport import output_macros, pyopencl
+from clbeam.imaging.engine.clsupport import output_macros
 from clbeam.model.grid import window_cells
 
 #: work-items per work-group along range
@@ -60,6 +60,8 @@ def interpolate_beams_cl(engine, plan: BeamPlan, beam, outs: frozenset, out_wind
                np.int32(na), np.int32(n_cells))
         out.read(a0, first[rows], lengths[rows])
     engine.queue.finish()
+    engine.readback.settle()
+    out.settle()
     return out.arrays(), out.flagged()
 
 
@@ -81,38 +83,48 @@ class _TileOutputs:
         self.full = {}
         for name in wanted - {"flag"}:  # the flags come back as the flagged cells' indices, not as a grid
             dtype = np.int32 if name == "m" else real
-            self.full[name] = np.zeros(((2,) if name == "s" else ()) + (n_a, n_r), dtype=dtype)
+            self.full[name] = engine.host.zeros(((2,) if name == "s" else ()) + (n_a, n_r), dtype)
         itemsize = np.dtype(real).itemsize
         size = {"m": 4, "flag": 1}
         self.bufs = {name: engine.buffer("bout_" + name, (2 if name == "s" else 1) * self.rows * n_r
                                           * size.get(name, itemsize) if name in wanted else 16)
                      for name in self.NAMES}
         self._flagged: list = []
+        self._tiles: list = []   # the tiles read but not settled
 
     def buffers(self) -> list:
         """The output buffers in the kernel's argument order."""
         return [self.bufs[name] for name in self.NAMES]
 
     def read(self, a0: int, first: np.ndarray, lengths: np.ndarray) -> None:
-        """Copy a tile's packed cells (the windows ``[first, first + lengths)`` of rows ``a0 ..``) into place."""
-        cl, queue = pyopencl(), self.engine.queue
+        """Queue the copies of a tile's packed cells (the windows ``[first, first + lengths)`` of rows ``a0 ..``):
+        straight into the grid's rows where the windows are whole rows, else into packed host arrays that
+        :meth:`settle` spreads into place; none waited for (the queue runs in order)."""
         na, n_cells = lengths.size, int(lengths.sum())
         whole = n_cells == na * self.n_r  # every cell: the packed layout is the grid's
-        # where the packed cells go in the tile's flattened rows
-        spread = None if whole else window_cells(first, lengths, self.n_r)[0]
-        flags = np.empty(n_cells, dtype=np.uint8)
-        cl.enqueue_copy(queue, flags, self.bufs["flag"], is_blocking=True)
-        at = np.flatnonzero(flags)
-        rows, cols = np.divmod(at if whole else spread[at], self.n_r)
-        self._flagged.append(np.stack([rows + a0, cols]))
+        flags = self.engine.host.empty((n_cells,), np.uint8)
+        self.engine.read_into(flags, self.bufs["flag"])
+        packed = []
         for name, arr in self.full.items():
             planes = [arr[0, a0:a0 + na], arr[1, a0:a0 + na]] if name == "s" else [arr[a0:a0 + na]]
-            for k, plane in enumerate(planes):  # contiguous rows: copied straight in when the tile is whole
-                dest = plane if whole else np.empty(n_cells, dtype=arr.dtype)
-                cl.enqueue_copy(queue, dest, self.bufs[name], src_offset=k * n_cells * arr.itemsize,
-                                is_blocking=True)
+            for k, plane in enumerate(planes):  # contiguous rows
+                dest = plane if whole else self.engine.host.empty((n_cells,), arr.dtype)
+                self.engine.read_into(dest, self.bufs[name], k * n_cells * arr.itemsize)
                 if not whole:
-                    plane.reshape(-1)[spread] = dest
+                    packed.append((plane, dest))
+        # where the packed cells go in the tile's flattened rows
+        spread = None if whole else window_cells(first, lengths, self.n_r)[0]
+        self._tiles.append((a0, flags, spread, packed))
+
+    def settle(self) -> None:
+        """After the queue's ``finish``: the packed cells spread into the grid, the flagged cells listed."""
+        for a0, flags, spread, packed in self._tiles:
+            at = np.flatnonzero(flags)
+            rows, cols = np.divmod(at if spread is None else spread[at], self.n_r)
+            self._flagged.append(np.stack([rows + a0, cols]))
+            for plane, dest in packed:
+                plane.reshape(-1)[spread] = dest
+        self._tiles = []
 
     def flagged(self) -> tuple[np.ndarray, np.ndarray]:
         """Angle and range indices of the flagged cells."""
