@@ -148,7 +148,7 @@ def encode(items: list, rounding: _Rounding, what: str) -> dict:
 
 
 def _time_fields(t) -> dict:
-    """Year, day of year, hour, minute, second (UTC) of a datetime64, and the fraction dropped (s)."""
+    """The rev 1 time fields of a datetime64: year, day of year (1 = 1 January), hour, minute, whole second, UTC."""
     t = np.datetime64(t, "ns")
     seconds = t.astype("datetime64[s]")
     day = seconds.astype("datetime64[D]")
