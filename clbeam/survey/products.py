@@ -261,7 +261,7 @@ def _store_attrs(first: _FirstPass, options: SurveyOptions, failures) -> dict:
         "pings_imaged": n_imaged, "pings_total": n,
         "utm_epsg": first.nav.epsg if first.nav.epsg is not None else -1,
         "association": json.dumps(dataclasses.asdict(options.association)),
-        "speed_m_s": options.speed_m_s if options.speed_m_s is not None else -1.0,
+        "speed_m_s": options.speed_m_s,  # None (not given): no attribute
         "failures": json.dumps([str(f) for f in failures]),
         **first.sonar,
     }
