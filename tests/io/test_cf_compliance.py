@@ -1,8 +1,9 @@
 """Every kind of file clbeam writes passes the IOOS compliance checker's CF suite without an error or a
-warning, and carries the ACDD discovery attributes: ping files (raw and analytic), image files (plain, and
-deflated with the coherence factor packed), both as NetCDF and as Zarr, and the survey store with its
-group of peaks.  The checker reads NetCDF only: a Zarr store is checked as the NetCDF file of its metadata
-and arrays as stored (no CF decoding), a group with the root's global attributes (CF §2.7)."""
+warning, and carries the ACDD discovery attributes: ping files (raw and analytic, and a simulation with its
+truth), image files (plain, and deflated with the coherence factor packed), both as NetCDF and as Zarr, and
+the survey store with its group of peaks.  The checker reads NetCDF only: a Zarr store is checked as the
+NetCDF file of its metadata and arrays as stored (no CF decoding), a group with the root's global
+attributes (CF §2.7)."""
 
 from __future__ import annotations
 
@@ -114,6 +115,13 @@ def test_ping_files_pass_the_cf_checker(tmp_path, monkeypatch, kind, suffix):
     checked = zarr_as_netcdf(path, tmp_path / "z.nc") if suffix == ".zarr" else path
     assert_cf_clean(checked, monkeypatch)
     assert_acdd_discoverable(checked, monkeypatch)
+
+
+def test_a_simulated_ping_file_with_its_truth_passes_the_cf_checker(tmp_path, monkeypatch):
+    from clbeam.sim import simulate
+
+    path = write_ping_file(simulate("point", pings=2), tmp_path / "sim.nc")
+    assert_cf_clean(path, monkeypatch)
 
 
 @pytest.fixture(scope="module")
