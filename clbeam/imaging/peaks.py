@@ -158,14 +158,15 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         :data:`clbeam.io.peaks.PEAK_COLUMNS`, ``snr_db``, ``contrast_db`` and ``pfa`` (with an intensity
         image) and the ship's navigation, by decreasing CF.
     """
-    rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options)
+    floor = None if intensity is None else noise_floor(intensity, cf_smooth)
+    rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options,
+                 _least_intensity(floor, min_snr_db))
     if intensity is None:
         return rows
     band = context.band_hz
     lam = smoothing_eigenvalues(float(np.median(np.diff(grid.ranges_m))) if grid.shape[1] > 1 else 1.0,
                                 float(band[1] - band[0]), context.sound_speed_m_s)
     window, guard = contrast_windows(band, context.array_width_m, context.sound_speed_m_s)
-    floor = noise_floor(intensity, cf_smooth)
     # the clutter about the rows the SNR test keeps only: the others leave the table whatever their contrast
     # (a noise-free ping's thousands of maxima on its rounding are a hundred above the floor)
     measured = [k for k, snr in enumerate(snr_db(rows, floor)) if snr_test_passes(snr, min_snr_db)]
@@ -177,8 +178,22 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
                              min_snr_db=min_snr_db, contrast=(echo, clutter), min_contrast_db=min_contrast_db)
 
 
-def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options) -> list[dict]:
-    """The rows of :func:`peak_rows` before the detection test."""
+#: the relative margin below the SNR test's least intensity within which a peak still gets a row (the test
+#: itself, on the row's ``intensity_db``, then decides: a margin far above its rounding)
+SNR_PREFILTER_MARGIN = 1e-6
+
+
+def _least_intensity(floor: float | None, min_snr_db: float | None) -> float:
+    """The intensity below which a peak fails the SNR test for sure (0 where the test passes every peak)."""
+    if floor is None or min_snr_db is None or not (floor > 0 and np.isfinite(floor)):
+        return 0.0
+    return float(floor * 10 ** (min_snr_db / 10) * (1 - SNR_PREFILTER_MARGIN))
+
+
+def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options,
+          least_intensity: float = 0.0) -> list[dict]:
+    """The rows of :func:`peak_rows` before the detection test; a peak less intense than ``least_intensity``
+    (one the SNR test drops for sure: a noise-free ping has thousands on its rounding) gets none."""
     peaks = coherence_peaks(cf_smooth, threshold)
     nav = context.navigation
     if mlh:
@@ -188,7 +203,11 @@ def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine,
         dets = suppress_main_lobe_highlights(peaks, cf_smooth, grid, centre_yz_m=context.centre_yz_m, **options)
         return detection_rows(dets, context.index, intensity, context.centre_yz_m, nav, position=position)
     if refine is not None:
-        return _refined_rows(context, refine(peaks), cf_smooth, grid)
+        refined = refine(peaks)
+        return _refined_rows(context, refined.take(np.flatnonzero(~(refined.intensity < least_intensity))),
+                             cf_smooth, grid)
+    if intensity is not None and least_intensity > 0:
+        peaks = peaks[~(intensity[peaks[:, 0], peaks[:, 1]] < least_intensity)]
     return [peak_row(context.index, grid.ranges_m[ir], grid.angles_deg[ia], context.centre_yz_m, cf_smooth[ia, ir],
                      float(intensity[ia, ir]) if intensity is not None else np.nan, nav)
             for ia, ir in peaks]

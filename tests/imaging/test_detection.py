@@ -219,3 +219,31 @@ def test_line1_clutter_falls_fivefold_and_every_pipeline_detection_stays():
         found[label] = ([s.name for s in scores if s.detected], len(rest))
     assert found["default"][0] == found["noise"][0] == ["A", "B", "C"]
     assert found["default"][1] * 5 <= found["noise"][1]
+
+
+@pytest.mark.parametrize("refine", [False, True])
+@pytest.mark.parametrize("noise", [0.0, 3e-5])
+def test_rows_and_contrasts_only_where_the_snr_test_can_pass_change_no_row(refine, noise):
+    """peak_rows builds rows, and measures clutter, only about the peaks the SNR test can keep: against every
+    peak's row and contrast gated by annotate_and_gate itself, the same rows with the same values, on a
+    noise-free ping (most of its maxima lie on the rounding, far below the floor) and a noisy one."""
+    from clbeam.imaging import peaks as peaks_module
+    from clbeam.imaging.detection import annotate_and_gate
+
+    ping = point_ping([polar_point(60.0, 10.0), polar_point(64.0, -25.0)], record_s=0.1)
+    ping.samples[:] += noise * np.random.default_rng(2).standard_normal(ping.samples.shape)
+    g = grid(0.1)
+    imager = Imager(g, ImagingOptions(interp="lanczos4", refine_peaks=refine))
+    img = imager.image(ping)
+    context, opts = img.context, imager.options
+    refiner = imager._refiner(*imager._prepare(ping), img.cf_smooth, img.intensity) if refine else None
+    every = peaks_module._rows(context, img.cf_smooth, img.intensity, g, opts.threshold, False, "lobe", refiner, {})
+    window, guard = contrast_windows(context.band_hz, context.array_width_m, context.sound_speed_m_s)
+    contrast = local_contrast(img.intensity, g.ranges_m, g.angles_deg, every, window=window, guard=guard)
+    lam = smoothing_eigenvalues(float(np.median(np.diff(g.ranges_m))), float(np.diff(context.band_hz)[0]),
+                                context.sound_speed_m_s)
+    expected = annotate_and_gate(every, floor=noise_floor(img.intensity, img.cf_smooth), n_channels=context.n_channels,
+                                 eigenvalues=lam, min_snr_db=opts.min_snr_db, contrast=contrast,
+                                 min_contrast_db=opts.min_contrast_db)
+    assert len(every) > len(expected) > 0
+    assert img.peaks == expected
