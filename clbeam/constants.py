@@ -42,6 +42,8 @@ MAX_ABS_GAIN_DB = 60.0
 # -- accuracy -----------------------------------------------------------------
 #: default error budget of the intensity against the exact image (dB): picks mode, upsampling and beams
 DEFAULT_MAX_ERROR_DB = -40.0
+#: error budget of the coherence factor (largest |dCF| on cells within 40 dB of an echo) that --interp auto holds
+DEFAULT_MAX_CF_ERROR = 0.02
 
 # -- detection (docs/peaks.md; Holland et al. 2024, Section III) ----------------
 #: coherence-peak threshold on the smoothed CF (the paper's 0.25)

@@ -36,16 +36,18 @@ def delayed(waveform: np.ndarray, delay_s: np.ndarray, n_samples: int, fs: float
 
 
 def point_ping(targets_m, amplitudes=None, *, roll_deg=0.0, heave_m=0.0, n_channels=64, record_s=0.3,
-               t0_s=0.0, source_m=(0.0, 0.0, 0.0), pulse=PULSE, fs=FS, c=C, kind="raw") -> Ping:
+               t0_s=0.0, source_m=(0.0, 0.0, 0.0), pulse=PULSE, fs=FS, c=C, kind="raw", elements_m=None) -> Ping:
     """A ping with point scatterers at earth-frame positions ``targets_m`` (``(k, 3)``, m).
 
     Travel times ``(|r - s| + |r - e_n|) / c`` with the array rolled and heaved
     as docs/ping-format.md says; amplitude ``a / (|r - s| |r - e_n|)``.  ``kind="analytic"``
-    stores the exact compressed analytic signal instead of raw pressure.
+    stores the exact compressed analytic signal instead of raw pressure; ``elements_m`` (``(n, 3)``, vessel
+    frame) replaces the SBP29-like array of ``n_channels`` elements.
     """
     targets = np.atleast_2d(np.asarray(targets_m, dtype=float))
     amps = np.ones(len(targets)) if amplitudes is None else np.asarray(amplitudes, dtype=float)
-    elements = sbp_elements(n_channels)
+    elements = sbp_elements(n_channels) if elements_m is None else np.asarray(elements_m, dtype=float)
+    n_channels = len(elements)
     el = to_earth_frame(elements, roll_deg=roll_deg, heave_m=heave_m)
     src = to_earth_frame(np.asarray(source_m, dtype=float), roll_deg=roll_deg, heave_m=heave_m)
     n_samples = int(round(record_s * fs))
@@ -92,7 +94,7 @@ def bandlimited_noise(shape, *, f_lo=2000.0, f_hi=9000.0, fs=FS, seed=0) -> np.n
 
 
 def profile_point_ping(targets_yz_m, profile, *, n_channels=64, record_s=1.5, t0_s=0.0, pulse=PULSE,
-                       fs=FS) -> Ping:
+                       fs=FS, elements_m=None) -> Ping:
     """A ping of point scatterers (earth-frame ``(y, z)``, m) in a stratified
     ocean: each echo's delay is the exact eigenray time source → scatterer →
     element (:func:`clbeam.imaging.raytrace.element_travel_times`), spreading
@@ -101,7 +103,8 @@ def profile_point_ping(targets_yz_m, profile, *, n_channels=64, record_s=1.5, t0
     from clbeam.imaging.raytrace import element_travel_times
 
     targets = np.atleast_2d(np.asarray(targets_yz_m, dtype=float))
-    elements = sbp_elements(n_channels)
+    elements = sbp_elements(n_channels) if elements_m is None else np.asarray(elements_m, dtype=float)
+    n_channels = len(elements)
     t_src = element_travel_times(profile, np.zeros((1, 2)), targets)[0]
     t_rx = element_travel_times(profile, elements[:, 1:], targets)
     n_samples = int(round(record_s * fs))

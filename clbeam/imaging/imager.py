@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.constants import (
+    DEFAULT_MAX_CF_ERROR,
     DEFAULT_MAX_ERROR_DB,
     DEFAULT_MIN_CHANNELS,
     DEFAULT_MIN_CONTRAST_DB,
@@ -35,6 +36,7 @@ from clbeam.imaging.apodization import (
     parse_window,
     receive_weights,
 )
+from clbeam.imaging.budget import Budget, CalibrationScene, choose_measured_setting
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
 from clbeam.imaging.engine.beams import BeamSampling
 from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs, min_channels_of, user_windows
@@ -76,6 +78,11 @@ class ImagingOptions:
     max_error_db : float
         Error budget of the intensity against the exact image (dB) that
         ``"auto"`` settings meet.
+    max_cf_error : float
+        Error budget of the coherence factor: the largest ``|dCF|`` on cells
+        within 40 dB of an echo's peak, measured with the CF at an echo on a
+        node (at least 0.99) on the ping's own geometry
+        (:mod:`clbeam.imaging.budget`) for ``"auto"`` settings.
     outputs : tuple of str
         Requested outputs: ``"intensity"``, ``"cf"``, ``"sums"``; CF also
         gives the smoothed CF and the coherence peaks.
@@ -150,6 +157,7 @@ class ImagingOptions:
     mlh: bool = False
     beams: BeamSampling | str | None = "auto"
     max_error_db: float = DEFAULT_MAX_ERROR_DB
+    max_cf_error: float = DEFAULT_MAX_CF_ERROR
     refine_peaks: bool = True
     min_channels: float = DEFAULT_MIN_CHANNELS
     min_snr_db: float | None = DEFAULT_MIN_SNR_DB
@@ -162,6 +170,8 @@ class ImagingOptions:
                 f"beams must be 'auto', None or a BeamSampling, got {self.beams!r}")
         require(math.isfinite(self.max_error_db) and self.max_error_db < 0, OptionError,
                 f"the error budget must be a negative number of dB, got {self.max_error_db!r}")
+        require(isinstance(self.max_cf_error, (int, float)) and 0 < self.max_cf_error <= 1, OptionError,
+                f"the CF error budget must be within (0, 1], got {self.max_cf_error!r}")
         object.__setattr__(self, "apodization", parse_window(self.apodization).label)
         object.__setattr__(self, "outputs", tuple(sorted(check_outputs(self.outputs))))
         require(self.upsample is None or (int(self.upsample) == self.upsample and 1 <= self.upsample <= 16),
@@ -339,35 +349,36 @@ class Imager:
         source = to_earth_frame(ping.source_pos_m, roll_deg=ping.roll_deg, heave_m=ping.heave_m)
         centre = np.r_[0.0, self.grid.centre(tuple(ping.source_pos_m[1:]))]
         band = pulse_band_hz(ping.pulse, ping.sample_rate_hz)
-        setting = self.setting(ping.element_pos_m[used] - centre, band, ping, data.shape[1])
-        fs = ping.sample_rate_hz
-        if setting.upsample > 1:
-            data = upsample_analytic(data, setting.upsample)
-            fs *= setting.upsample
         fc = ping.pulse.centre_frequency_hz if ping.pulse is not None else None
         if fc is None and band is not None:  # an explicit waveform: the carrier of the basebanded modes is its band's centre
             fc = 0.5 * (band[0] + band[1])
         window = parse_window(self.options.apodization)
         weights = None if window.uniform else receive_weights(window, ping.element_pos_m[:, 1])[used]
         inp = BeamformInput(
-            data=data, sample_rate_hz=fs, t0_s=ping.t0_s - compression_delay_s(ping),
+            data=data, sample_rate_hz=ping.sample_rate_hz, t0_s=ping.t0_s - compression_delay_s(ping),
             sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
             element_offsets_m=elements - centre, source_offset_m=source - centre,
             centre_frequency_hz=fc or 0.0, weights=weights, band_hz=band,
             min_channels=min_channels_of(self.options.min_channels, data.shape[0]),
             data_token=object())  # one token a ping: the engine uploads its channels once for every stage
+        check_grid_reaches_record(inp, self.grid)   # before the setting, which is measured on the record's cells
+        setting = self.setting(ping.element_pos_m[used] - centre, band, ping, data.shape[1], geometry=inp)
+        if setting.upsample > 1:
+            inp = dataclasses.replace(inp, data=upsample_analytic(data, setting.upsample),
+                                      sample_rate_hz=ping.sample_rate_hz * setting.upsample)
         return self._with_tables(ping, inp, float(centre[2])), setting
 
     def setting_of(self, ping: Ping) -> Setting:
-        """The setting ``ping`` is imaged with (:meth:`setting` from its usable channels)."""
-        used = np.asarray(ping.channel_valid, dtype=bool)
-        centre = np.r_[0.0, self.grid.centre(tuple(ping.source_pos_m[1:]))]
-        return self.setting(ping.element_pos_m[used] - centre, pulse_band_hz(ping.pulse, ping.sample_rate_hz), ping,
-                            ping.samples.shape[1])
+        """The setting ``ping`` is imaged with (:meth:`setting` of its prepared channels)."""
+        return self._prepare(ping)[1]
 
-    def setting(self, offsets_m: np.ndarray, band_hz, ping: Ping, n_samples: int) -> Setting:
+    def setting(self, offsets_m: np.ndarray, band_hz, ping: Ping, n_samples: int,
+                geometry: BeamformInput | None = None) -> Setting:
         """Mode, upsampling and beam sampling for a ping of this array, band and sampling
-        (:func:`clbeam.imaging.engine.errormodel.choose_setting`; cached, logged once).
+        (:func:`clbeam.imaging.engine.errormodel.choose_setting`; with ``--interp auto`` and
+        ``geometry``, the ping's input before upsampling, the cheapest candidate whose errors measured on
+        point echoes through that geometry hold the budget, :mod:`clbeam.imaging.budget`; cached, logged
+        once).
 
         Parameters
         ----------
@@ -405,9 +416,21 @@ class Imager:
                 predicted = [s for s in predicted if s.beams is None or s.beams.taps >= REFRACTED_MIN_TAPS]
             setting = choose_setting(predicted, opts.max_error_db, interp=forced,
                                      upsample=opts.upsample or (1 if forced else None), beams=beams)
+            if geometry is not None and forced is None and beams == "auto" and opts.upsample is None:
+                setting = self._measured_setting(predicted, geometry, band)
             log.info("imaging setting: %s", setting.describe())
             self._settings[key] = setting
         return setting
+
+    def _measured_setting(self, predicted: list, geometry: BeamformInput, band) -> Setting:
+        """The cheapest of the settings predicted within the intensity budget whose errors measured on
+        ``geometry`` hold the whole budget (:func:`clbeam.imaging.budget.choose_measured_setting`)."""
+        opts = self.options
+        budget = Budget(max_error_db=opts.max_error_db, max_cf_error=opts.max_cf_error)
+        candidates = [s for s in predicted if s.error_db <= opts.max_error_db]
+        setting, measured = choose_measured_setting(candidates, CalibrationScene(geometry, self.grid, band),
+                                                    self.engine, budget)
+        return dataclasses.replace(setting, measured=measured.describe())
 
     # -- sound-speed profile ----------------------------------------------
     def water_profile(self, ping: Ping):

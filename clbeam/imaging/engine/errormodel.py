@@ -159,6 +159,8 @@ class Setting:
         Predicted error power of the intensity relative to it (dB).
     cost : float
         Predicted time, in cell-channels of ``nearest`` per output cell and channel.
+    measured : str
+        The errors measured on the ping's own geometry (:mod:`clbeam.imaging.budget`), where they were.
     """
 
     interp: str
@@ -166,12 +168,14 @@ class Setting:
     beams: BeamSampling | None
     error_db: float
     cost: float
+    measured: str = ""
 
     def describe(self) -> str:
-        """One line: mode, upsampling, beams, predicted error."""
+        """One line: mode, upsampling, beams, predicted error (and what was measured on the ping's geometry)."""
         beams = f"beams x{self.beams.oversampling:g}/{self.beams.taps} taps" if self.beams else "direct"
         up = f" x{self.upsample}" if self.upsample > 1 else ""
-        return f"{self.interp}{up}, {beams}: predicted {self.error_db:.1f} dB"
+        measured = f"; measured {self.measured}" if self.measured else ""
+        return f"{self.interp}{up}, {beams}: predicted {self.error_db:.1f} dB{measured}"
 
 
 def predicted_settings(offsets_m: np.ndarray, band_hz: tuple, sample_rate_hz: float, sound_speed_m_s: float, *,
