@@ -1,4 +1,4 @@
-"""``clbeam image``: a ping file into intensity and coherence-factor images (SPEC §8)."""
+"""``clbeam image``: a ping file into intensity and coherence-factor images (docs/cli.md)."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ HELP = "image a ping file into intensity and coherence factor"
 
 def add_arguments(p) -> None:
     """The arguments of ``clbeam image``."""
-    p.add_argument("pings", metavar="PINGS.nc", help="ping file (NetCDF4 or Zarr, SPEC §7)")
+    p.add_argument("pings", metavar="PINGS.nc", help="ping file (NetCDF4 or Zarr; see clbeam docs ping-format)")
     p.add_argument("-o", "--output", required=True, metavar="IMAGES.nc", help="image file to write (.nc or .zarr)")
     p.add_argument("--peaks", metavar="PEAKS.csv", help="also write the coherence peaks")
     p.add_argument("--stack", type=int, default=1, metavar="K",
@@ -85,7 +85,7 @@ def run(args) -> int:
             opts = dataclasses.replace(opts, outputs=tuple(set(opts.outputs) | {"intensity", "sums"}))
         imager = Imager(grid, opts, backend=args.backend, device=args.device)
         attrs = {"interp": opts.interp, "upsample": opts.upsample or "auto", "beams": args.beams,
-                 "max_error_db": opts.max_error_db, "backend": args.backend,
+                 "max_error_db": opts.max_error_db, "max_cf_error": opts.max_cf_error, "backend": args.backend,
                  "apodization": opts.apodization, "calibrated": int(opts.calibrate), "stacked_pings": args.stack,
                  "min_channels": opts.min_channels, "threshold": opts.threshold,
                  "min_snr_db": "off" if opts.min_snr_db is None else opts.min_snr_db,

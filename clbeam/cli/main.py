@@ -1,9 +1,9 @@
-"""The ``clbeam`` command line (SPEC §8): parse, call the library, report.
+"""The ``clbeam`` command line (docs/cli.md): parse, call the library, report.
 
 Every subcommand is one module of this package with the same four names:
 ``NAME`` (the subcommand), ``HELP`` (one line), ``add_arguments(parser)``
 and ``run(args) -> int``; :func:`build_parser` registers each of
-:data:`COMMANDS` the same way and adds ``-q/--quiet``.  The optional
+:data:`COMMANDS` the same way and adds ``-q/--quiet``, ``-v/--verbose`` and ``--debug``.  The optional
 packages (Dask, pyproj, segyio, numba) are imported only inside ``run``, so
 every command's ``--help`` works without them.  Bad input ends in one line
 on stderr and exit status 2; long work shows a progress bar on a terminal.
@@ -12,7 +12,6 @@ on stderr and exit status 2; long work shows a progress bar on a terminal.
 from __future__ import annotations
 
 import argparse
-import logging
 import sys
 
 from clbeam import __version__
@@ -21,6 +20,7 @@ from clbeam.cli import (
     bench,
     demo,
     devices,
+    docs,
     forward,
     image,
     import_segy,
@@ -30,20 +30,20 @@ from clbeam.cli import (
     simulate,
     survey,
 )
-from clbeam.cli.options import add_quiet
+from clbeam.cli.options import add_logging_options, setup_logging
 from clbeam.errors import ClbeamError
 
 #: exit status of bad input (one line on stderr)
 EXIT_BAD_INPUT = 2
 #: the subcommand modules, in the order ``clbeam --help`` lists them
-COMMANDS = (devices, image, peaks, simulate, demo, survey, profile, import_segy, avo, forward, sediment_speed, bench)
+COMMANDS = (devices, image, peaks, simulate, demo, survey, profile, import_segy, avo, forward, sediment_speed, bench, docs)
 
 
 def register(subparsers, command) -> argparse.ArgumentParser:
     """Add one subcommand module to an ``argparse`` subparsers object."""
     sp = subparsers.add_parser(command.NAME, help=command.HELP, description=getattr(command, "DESCRIPTION", None))
     command.add_arguments(sp)
-    add_quiet(sp)
+    add_logging_options(sp)
     sp.set_defaults(func=command.run)
     return sp
 
@@ -52,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``clbeam`` argument parser with every subcommand."""
     p = argparse.ArgumentParser(prog="clbeam", description="Cross-track imaging of multibeam sub-bottom sonar element data.")
     p.add_argument("--version", action="version", version=f"clbeam {__version__}")
-    p.add_argument("--debug", action="store_true", help="show full tracebacks and debug logging")
+    add_logging_options(p, top=True)
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for command in COMMANDS:
         register(sub, command)
@@ -63,8 +63,7 @@ def main(argv=None) -> int:
     """Entry point of the ``clbeam`` command; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
-                        format="clbeam: %(levelname)s: %(message)s")
+    setup_logging(args)
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_BAD_INPUT

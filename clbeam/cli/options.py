@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from clbeam.constants import (
+    DEFAULT_MAX_CF_ERROR,
     DEFAULT_MAX_ERROR_DB,
     DEFAULT_MIN_CHANNELS,
     DEFAULT_MIN_CONTRAST_DB,
@@ -53,6 +54,50 @@ def add_quiet(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
 
 
+#: loggers of the libraries clbeam uses: held at WARNING unless ``--debug`` is given twice
+LIBRARY_LOGGERS = ("numba", "matplotlib", "distributed", "dask", "asyncio", "PIL", "fsspec", "h5py", "h5netcdf",
+                   "netCDF4", "zarr", "numcodecs", "pyopencl", "pytools", "tornado", "bokeh", "urllib3")
+#: format of every log line
+LOG_FORMAT = "clbeam: %(levelname)s: %(message)s"
+
+
+def add_logging_options(p: argparse.ArgumentParser, *, top: bool = False) -> None:
+    """``-v/--verbose`` and ``--debug``, and on a subcommand (``top`` false) ``-q/--quiet`` too.
+
+    The main parser's flags (``clbeam --debug image ...``) and a subcommand's
+    (``clbeam image ... --debug``) add up; :func:`setup_logging` reads both.
+    """
+    if not top:
+        add_quiet(p)
+    prefix = "" if top else "sub_"
+    p.add_argument("-v", "--verbose", action="count", default=0, dest=f"{prefix}verbose",
+                   help="show clbeam's progress messages (log level INFO)")
+    p.add_argument("--debug", action="count", default=0, dest=f"{prefix}debug",
+                   help="show clbeam's debug messages and full tracebacks; twice (--debug --debug) also the "
+                        "debug messages of the libraries (numba, matplotlib, Dask ...), otherwise held at WARNING")
+
+
+def setup_logging(args: argparse.Namespace) -> None:
+    """Configure logging from the parsed ``-v`` and ``--debug`` counts (main parser and subcommand together).
+
+    Sets ``args.verbose`` and ``args.debug`` to the totals.  clbeam's loggers
+    log at WARNING, INFO with ``-v``, DEBUG with ``--debug``; every other
+    logger, the libraries' of :data:`LIBRARY_LOGGERS` named, stays at WARNING
+    unless ``--debug`` is given twice.
+    """
+    import logging
+
+    args.verbose = getattr(args, "verbose", 0) + getattr(args, "sub_verbose", 0)
+    args.debug = getattr(args, "debug", 0) + getattr(args, "sub_debug", 0)
+    everything = args.debug >= 2
+    level = logging.DEBUG if args.debug else logging.INFO if args.verbose else logging.WARNING
+    logging.basicConfig(format=LOG_FORMAT)  # a handler on stderr unless the root logger has one
+    logging.getLogger().setLevel(logging.DEBUG if everything else logging.WARNING)
+    logging.getLogger("clbeam").setLevel(level)
+    for name in LIBRARY_LOGGERS:
+        logging.getLogger(name).setLevel(logging.NOTSET if everything else logging.WARNING)
+
+
 def add_engine_choice(p, *, group=None) -> None:
     """``--interp``, ``--backend`` and ``--device``: which engine and mode image the pings."""
     from clbeam.imaging.engine import INTERP_MODES
@@ -67,7 +112,7 @@ def add_engine_choice(p, *, group=None) -> None:
 
 
 def add_grid_options(p: argparse.ArgumentParser) -> None:
-    """Grid options of SPEC §8."""
+    """The grid options (docs/cli.md)."""
     g = p.add_argument_group("grid")
     g.add_argument("--range-res", type=float, default=0.2, metavar="M", help="range step (m, default 0.2)")
     g.add_argument("--angle-res", type=float, default=0.1, metavar="DEG", help="angle step (degree, default 0.1)")
@@ -88,6 +133,10 @@ def add_imaging_options(p: argparse.ArgumentParser, *, min_contrast_db: float | 
     g.add_argument("--max-error-db", type=float, default=DEFAULT_MAX_ERROR_DB, metavar="DB",
                    help=f"error budget of the intensity against the exact image (dB, default {DEFAULT_MAX_ERROR_DB:g}): "
                         "--interp auto picks the cheapest setting that meets it")
+    g.add_argument("--max-cf-error", type=float, default=DEFAULT_MAX_CF_ERROR, metavar="DCF",
+                   help=f"error budget of the coherence factor (default {DEFAULT_MAX_CF_ERROR:g}): the largest |dCF| "
+                        "on cells within 40 dB of an echo, with CF >= 0.99 at an echo on a node, measured on each "
+                        "ping geometry's own point echoes; --interp auto holds it too")
     g.add_argument("--beams", default="auto", metavar="auto|off|K[:TAPS]",
                    help="beam-sampled imaging: auto (chosen by the budget with --interp auto), off (every cell "
                         "directly), or an oversampling K of the aperture's band limit with TAPS interpolation taps")
@@ -158,7 +207,7 @@ def options_from_args(args, **overrides):
     engine_outputs = tuple(o for o in outputs if o != "cf_smooth") + (("cf",) if "cf_smooth" in outputs else ())
     fields = dict(interp=args.interp, upsample=args.upsample, outputs=tuple(dict.fromkeys(engine_outputs)),
                   threshold=args.threshold,
-                  max_error_db=args.max_error_db, beams=parse_beams(args.beams),
+                  max_error_db=args.max_error_db, max_cf_error=args.max_cf_error, beams=parse_beams(args.beams),
                   sound_speed_m_s=args.sound_speed, precision=args.precision,
                   seabed_band_m=tuple(args.seabed_band) if args.seabed_band else None,
                   seabed_depth_m=args.seabed_depth, apodization=args.apodization,
