@@ -4,6 +4,7 @@ the smoothed CF), the noise floor and a peak's SNR, and the level gate on
 noise-free data."""
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -223,12 +224,16 @@ def test_line1_clutter_falls_fivefold_and_every_pipeline_detection_stays():
 
 @pytest.mark.parametrize("refine", [False, True])
 @pytest.mark.parametrize("noise", [0.0, 3e-5])
-def test_rows_and_contrasts_only_where_the_snr_test_can_pass_change_no_row(refine, noise):
+def test_rows_and_contrasts_only_where_the_snr_test_can_pass_change_no_row(monkeypatch, refine, noise):
     """peak_rows builds rows, and measures clutter, only about the peaks the SNR test can keep: against every
     peak's row and contrast gated by annotate_and_gate itself, the same rows with the same values, on a
-    noise-free ping (most of its maxima lie on the rounding, far below the floor) and a noisy one."""
+    noise-free ping (most of its maxima lie on the rounding, far below the floor) and a noisy one (the clutter
+    box by box in both: the same sums, bit for bit)."""
+    import clbeam.imaging.detection as detection
     from clbeam.imaging import peaks as peaks_module
     from clbeam.imaging.detection import annotate_and_gate
+
+    monkeypatch.setattr(detection, "TABLE_CELLS_RATIO", np.inf)
 
     ping = point_ping([polar_point(60.0, 10.0), polar_point(64.0, -25.0)], record_s=0.1)
     ping.samples[:] += noise * np.random.default_rng(2).standard_normal(ping.samples.shape)
@@ -247,3 +252,66 @@ def test_rows_and_contrasts_only_where_the_snr_test_can_pass_change_no_row(refin
                                  min_contrast_db=opts.min_contrast_db)
     assert len(every) > len(expected) > 0
     assert img.peaks == expected
+
+
+def brute_force_contrast(x, ranges, angles, i, j, window, guard):
+    """Each row's echo and clutter (dB) by masks over the whole image (float64, finite cells only)."""
+    echo, clutter = np.full(len(i), np.nan), np.full(len(i), np.nan)
+    for k, (a, b) in enumerate(zip(i, j)):
+        da, dr = np.abs(angles - angles[a])[:, None], np.abs(ranges - ranges[b])[None, :]
+        in_window = (da <= window[1] + 1e-9) & (dr <= window[0] + 1e-9)
+        in_cross = in_window & ((da <= guard[1] + 1e-9) | (dr <= guard[0] + 1e-9))
+        in_guard = (da <= guard[1] + 1e-9) & (dr <= guard[0] + 1e-9)
+        cells = x[in_window & ~in_cross].astype(np.float64)
+        cells = cells[np.isfinite(cells)]
+        peak = x[in_guard & np.isfinite(x)]
+        if cells.size and cells.sum() > 0:
+            clutter[k] = 10 * np.log10(cells.mean())
+        if peak.size and peak.max() > 0:
+            echo[k] = 10 * math.log10(float(peak.max()))
+    return echo, clutter
+
+
+@pytest.mark.parametrize("with_nan", [False, True])
+def test_many_rows_clutter_from_the_summed_area_table_equals_counting_every_cell(monkeypatch, with_nan):
+    """Hundreds of rows (the table and the sparse table of maxima, forced), on the edges and corners too, an
+    uneven range axis, NaN cells in a band and scattered: against masks over the image, the echo exactly and
+    the clutter to 1e-9 dB (float64 rounding of sums of a few thousand cells, ~1e-13 relative)."""
+    import clbeam.imaging.detection as detection
+
+    monkeypatch.setattr(detection, "TABLE_CELLS_RATIO", 0.0)
+    rng = np.random.default_rng(12)
+    ranges = np.cumsum(rng.uniform(0.1, 0.3, 150))
+    angles = np.arange(-6.0, 6.0, 0.1)
+    window, guard = (3.1, 1.55), (0.45, 0.35)
+    x = rng.exponential(1.0, size=(angles.size, ranges.size)).astype(np.float32)
+    if with_nan:
+        x[:, -20:] = np.nan
+        x[rng.random(x.shape) < 0.05] = np.nan
+    i = np.r_[0, angles.size - 1, rng.integers(0, angles.size, 300)]
+    j = np.r_[0, ranges.size - 1, rng.integers(0, ranges.size, 300)]
+    rows = [{"range_m": ranges[b], "angle_deg": angles[a]} for a, b in zip(i, j)]
+    echo, clutter = local_contrast(x, ranges, angles, rows, window=window, guard=guard)
+    ref_echo, ref_clutter = brute_force_contrast(x, ranges, angles, i, j, window, guard)
+    np.testing.assert_array_equal(echo, ref_echo)
+    np.testing.assert_allclose(clutter, ref_clutter, rtol=0, atol=1e-9)
+
+
+def test_a_quiet_window_beside_a_far_brighter_echo_is_summed_box_by_box(monkeypatch):
+    """A noise-free image spans 10^20 and more: the table's differences would lose a window of 1e-20 cells
+    beside an echo of 1 (its rounding ~1e-14 of the echo); such a window is summed itself, and its clutter is
+    the brute force's to 1e-9 dB."""
+    import clbeam.imaging.detection as detection
+
+    monkeypatch.setattr(detection, "TABLE_CELLS_RATIO", 0.0)
+    rng = np.random.default_rng(13)
+    ranges, angles = np.arange(0.0, 30.0, 0.2), np.arange(-6.0, 6.0, 0.1)
+    window, guard = (3.1, 1.55), (0.45, 0.35)
+    x = 1e-20 * rng.exponential(1.0, size=(angles.size, ranges.size))
+    x[:60, :] += rng.exponential(1.0, size=(60, ranges.size))     # bright above, quiet below
+    i, j = rng.integers(70, angles.size, 50), rng.integers(0, ranges.size, 50)
+    rows = [{"range_m": ranges[b], "angle_deg": angles[a]} for a, b in zip(i, j)]
+    _, clutter = local_contrast(x, ranges, angles, rows, window=window, guard=guard)
+    _, ref = brute_force_contrast(x, ranges, angles, i, j, window, guard)
+    assert np.all(ref < -190)                                       # quiet windows, 10^19 below the echoes
+    np.testing.assert_allclose(clutter, ref, rtol=0, atol=1e-9)
