@@ -135,11 +135,17 @@ def coherence_peaks(cf_smooth: np.ndarray, threshold: float = PEAK_THRESHOLD) ->
     require(img.ndim == 2, OptionError, f"coherence peaks need a 2-D (angle, range) image, got shape {img.shape}")
     if img.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    top = _above_and_not_below_neighbours(img, threshold)
-    flat = np.flatnonzero(top)
+    above = img > threshold
+    if np.count_nonzero(above) <= SPARSE_ABOVE_FRACTION * img.size:  # few cells to look at: each one's neighbours
+        flat = np.flatnonzero(above)
+        flat = flat[_not_below_neighbours_at(img, flat)]
+    else:
+        flat = np.flatnonzero(_above_and_not_below_neighbours(img, threshold))
     tied = _equal_neighbour(img, flat)
     cells, first = flat[~tied], flat[~tied]
     if tied.any():  # plateaus: one cell each, where every member is not below any neighbour
+        top = np.zeros(img.shape, dtype=bool)
+        top.ravel()[flat] = True
         plateau_cells, plateau_first = _plateau_maxima(img, top, flat[tied])
         cells, first = np.concatenate([cells, plateau_cells]), np.concatenate([first, plateau_first])
     order = np.lexsort((first, -img.ravel()[cells]))
@@ -150,6 +156,9 @@ def coherence_peaks(cf_smooth: np.ndarray, threshold: float = PEAK_THRESHOLD) ->
 _NEIGHBOURS = [(da, dr) for da in (-1, 0, 1) for dr in (-1, 0, 1) if da or dr]
 
 
+#: at most this fraction of the image above the threshold, its cells are compared with their neighbours one
+#: by one (8 look-ups a cell); more, and the whole image goes through the maximum filter (a few passes)
+SPARSE_ABOVE_FRACTION = 1 / 16
 #: angle rows per block of the maximum filter (blocks that stay in the CPU's cache: 3-4x faster than whole passes)
 MAXIMUM_FILTER_BLOCK_ROWS = 32
 
@@ -186,6 +195,16 @@ def _max_of_three_along_range(x: np.ndarray, out: np.ndarray) -> np.ndarray:
     out[:, -1] = x[:, -1]
     np.maximum(out[:, 1:], x[:, :-1], out=out[:, 1:])  # with the previous
     return out
+
+
+def _not_below_neighbours_at(img: np.ndarray, flat: np.ndarray) -> np.ndarray:
+    """Whether each cell ``flat`` is not below any of its neighbours (cells beyond the image left out; a NaN
+    neighbour: False), as :func:`_above_and_not_below_neighbours` decides."""
+    values = img.ravel()
+    ok = np.ones(flat.size, dtype=bool)
+    for index, inside in _neighbours(img.shape, flat):
+        ok &= ~inside | (values[index] <= values[flat])
+    return ok
 
 
 def _neighbours(shape: tuple, flat: np.ndarray):

@@ -173,12 +173,18 @@ def scikit_image_peaks(img, threshold):
     return peaks[np.argsort(-img[peaks[:, 0], peaks[:, 1]], kind="stable")]
 
 
+@pytest.mark.parametrize("sparse", [0.0, 1.0], ids=["maximum-filter", "cell-by-cell"])
 @pytest.mark.parametrize("seed", range(6))
-def test_whole_image_search_equals_scikit_image_on_plateaus_and_ties(seed):
+def test_whole_image_search_equals_scikit_image_on_plateaus_and_ties(monkeypatch, seed, sparse):
     """Random images of a few levels (large plateaus, ties between separate maxima of one value, plateaus on
-    the edges and touching higher cells), of any shape down to one row or column, in float32 and float64:
-    the same cells in the same order as scikit-image's regional maxima."""
+    the edges and touching higher cells), of any shape down to one row or column, in float32 and float64,
+    through the maximum filter and through the cell-by-cell look of sparse images: the same cells in the
+    same order as scikit-image's regional maxima."""
     from scipy.ndimage import uniform_filter
+
+    import clbeam.imaging.postprocess as postprocess
+
+    monkeypatch.setattr(postprocess, "SPARSE_ABOVE_FRACTION", sparse)
 
     rng = np.random.default_rng(100 + seed)
     for trial in range(60):
