@@ -105,7 +105,8 @@ class PingContext:
                    source_yz_m=(float(source[1]), float(source[2])), latitude_deg=ping.latitude_deg,
                    longitude_deg=ping.longitude_deg, heading_deg=ping.heading_deg, band_hz=band,
                    array_width_m=width, sound_speed_m_s=float(sound_speed_m_s or ping.sound_speed_m_s),
-                   n_channels=n_channels, time=ping.time, draft_m=ping.draft_m)
+                   n_channels=n_channels, time=getattr(ping, "time", None),
+                   draft_m=getattr(ping, "draft_m", None))
 
     @property
     def navigation(self) -> dict:

@@ -101,8 +101,11 @@ def with_cf_attributes(ds: xr.Dataset) -> xr.Dataset:
         ds[name].attrs = {**table, **own}
     if "ping" in ds.variables and "long_name" not in ds["ping"].attrs:
         ds["ping"].attrs["long_name"] = "ping number"
-    cover = coverage_attributes(*(ds[n].values if n in ds.variables else None
-                                  for n in ("ping_time", "latitude", "longitude")))
+    def values(name: str, kind: str):
+        ok = name in ds.variables and ds[name].dtype.kind == kind
+        return ds[name].values if ok else None
+
+    cover = coverage_attributes(values("ping_time", "M"), values("latitude", "f"), values("longitude", "f"))
     ds.attrs.update(discovery_attributes(ds.attrs, title="clbeam ping file",
                                          summary="Element-level time series of multibeam sub-bottom sonar pings with "
                                                  "their array geometry, motion, navigation and pulse (clbeam ping-1 "
