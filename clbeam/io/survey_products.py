@@ -107,6 +107,8 @@ def json_number(v):
 GEOJSON_DECIMALS = (("_latitude_deg", 7), ("_longitude_deg", 7), ("_m", 3), ("_deg", 4), ("_s", 3))
 #: significant digits of the GeoJSON's other floats (coherence, levels in dB, probabilities)
 GEOJSON_DIGITS = 6
+#: JSON separators of the GeoJSON: no blank after commas and colons
+_COMPACT = (",", ":")
 
 
 def geojson_number(column: str, v):
@@ -228,7 +230,7 @@ class PeakTableWriter:
             feat = {"type": "Feature",
                     "geometry": {"type": "Point", "coordinates": geojson_position(lon, lat, cols["depth_m"][k])},
                     "properties": {c: geojson_number(c, cols[c][k]) for c in self.csv_columns}}
-            self.geo_fh.write(("" if self.first_feature else ",\n") + json.dumps(feat))
+            self.geo_fh.write(("" if self.first_feature else ",\n") + json.dumps(feat, separators=_COMPACT))
             self.first_feature = False
 
     def _flush(self, force: bool = False) -> None:
@@ -319,7 +321,8 @@ def write_feature_tables(output: Path, paths: tuple, group: str, rows: list, col
             geom = {"type": "LineString", "coordinates": xy} if len(xy) > 1 else {"type": "Point", "coordinates": xy[0]}
             feats.append({"type": "Feature", "geometry": geom, "properties": {
                 c: r[c] if isinstance(r[c], str) else geojson_number(c, r[c]) for c in columns}})
-        write_atomic(geojson_path, json.dumps({"type": "FeatureCollection", "name": title, "features": feats}).encode())
+        write_atomic(geojson_path, json.dumps({"type": "FeatureCollection", "name": title, "features": feats},
+                                              separators=_COMPACT).encode())
     else:
         with contextlib.suppress(FileNotFoundError):
             geojson_path.unlink()
