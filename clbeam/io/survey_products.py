@@ -332,6 +332,37 @@ def write_feature_tables(output: Path, paths: tuple, group: str, rows: list, col
         xr.Dataset(data).to_zarr(output, group=group, mode="w", consolidated=False)
 
 
+#: long names of the columns of the object and line tables (the positions' are built from their names)
+FEATURE_LONG_NAMES = {
+    "object": "object number", "line": "line number", "kind": "kind of line",
+    "n_pings": "pings the feature is detected in", "n_detections": "detections of the feature",
+    "first_ping": "first survey ping of the feature", "last_ping": "last survey ping of the feature",
+    "length_m": "length along its path", "heading_deg": "heading of the line, clockwise from north",
+    "mean_cf": "mean smoothed coherence factor of its detections", "max_cf": "largest smoothed coherence factor",
+    "mean_y_m": "mean cross-track offset, positive to starboard", "mean_z_m": "mean depth below the array reference point",
+    "score": "line score, -log10 of its expected number by chance", "burial_m": "burial below the seabed",
+    "burial_std_m": "spread of the burials along the line", "burial_error_m": "standard error of the burial",
+    "burial_resolved": "burial resolved from the seabed (1) or not (0)", "specular": "specular line (1) or diffuse (0)",
+    "detected_fraction": "fraction of the line's pings with a detection",
+}
+
+
+def feature_attributes(column: str) -> dict:
+    """CF attributes of a column of the object or line tables: long name, units by the name's ending
+    (``_latitude_deg``, ``_longitude_deg``, ``_deg``, ``_m``; ``1`` otherwise), standard name of positions."""
+    if column.endswith("_latitude_deg"):
+        extra = {"units": "degree_north", "standard_name": "latitude"}
+    elif column.endswith("_longitude_deg"):
+        extra = {"units": "degree_east", "standard_name": "longitude"}
+    else:
+        extra = {"units": "degree" if column.endswith("_deg") else "m" if column.endswith("_m") else "1"}
+    tag, _, rest = column.partition("_")
+    what = (rest.rsplit("_", 1)[0] if rest.endswith(("_deg", "_m")) else rest).replace("_", " ")
+    name = FEATURE_LONG_NAMES.get(column) or (f"{what} at the {tag} of the path" if tag in ("start", "end")
+                                              else column.replace("_", " "))
+    return {"long_name": name, **extra}
+
+
 def _feature_variables(dim: str, rows: list, columns: list, integer: set, categories: dict) -> dict:
     """The Zarr variables of a feature table: integers, floats, and categories as small integers with CF flags
     (Zarr v3 has no stable string type)."""
@@ -343,7 +374,8 @@ def _feature_variables(dim: str, rows: list, columns: list, integer: set, catego
         if c in categories or (vals and isinstance(vals[0], str)):
             names = list(categories.get(c) or sorted(set(vals)))
             data[c] = xr.Variable((dim,), np.array([names.index(v) for v in vals], dtype=np.int8),
-                                  {"flag_values": list(range(len(names))), "flag_meanings": " ".join(names)})
+                                  {"long_name": FEATURE_LONG_NAMES.get(c, c), "flag_values": list(range(len(names))),
+                                   "flag_meanings": " ".join(names)})
         else:
-            data[c] = ((dim,), np.array(vals, dtype=np.int64 if c in integer else np.float64))
+            data[c] = ((dim,), np.array(vals, dtype=np.int64 if c in integer else np.float64), feature_attributes(c))
     return data

@@ -1,9 +1,9 @@
 """Every kind of file clbeam writes passes the IOOS compliance checker's CF suite without an error or a
 warning, and carries the ACDD discovery attributes: ping files (raw and analytic, and a simulation with its
 truth), image files (plain, and deflated with the coherence factor packed), both as NetCDF and as Zarr, and
-the survey store with its group of peaks.  The checker reads NetCDF only: a Zarr store is checked as the
-NetCDF file of its metadata and arrays as stored (no CF decoding), a group with the root's global
-attributes (CF §2.7)."""
+the survey store with its groups of peaks, objects and lines.  The checker reads NetCDF only: a Zarr store
+is checked as the NetCDF file of its metadata and arrays as stored (no CF decoding), a group with the
+root's global attributes (CF §2.7)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,15 @@ from clbeam.io.conventions import CONVENTIONS
 from clbeam.io.images import ImageCompression, ImageWriter
 from clbeam.io.pingwrite import dataset_from_pings, write_ping_file
 from clbeam.io.schema import IMAGE_COORDS, IMAGE_PING_VARIABLES, IMAGE_VARIABLES, PING_VARIABLES
-from clbeam.io.survey_products import PEAK_TABLE, PeakTableWriter
+from clbeam.io.survey_products import (
+    LINE_COLUMNS,
+    LINE_INTEGERS,
+    LINE_KINDS,
+    OBJECT_COLUMNS,
+    PEAK_TABLE,
+    PeakTableWriter,
+    write_feature_tables,
+)
 from clbeam.io.survey_store import create_store, product_paths, read_root_attrs, update_store
 from clbeam.model.grid import PolarGrid
 from clbeam.model.svp import holland_line1_profile
@@ -100,7 +108,7 @@ def zarr_as_netcdf(store, path, group=None):
     for name, v in ds.variables.items():
         if v.dtype == bool:  # NetCDF has no booleans: int8, as xarray writes them
             ds[name] = v.astype(np.int8)
-        for key in ("valid_min", "valid_max"):  # a JSON number has no width: the variable's, as in NetCDF
+        for key in ("valid_min", "valid_max", "flag_values"):  # a JSON number has no width: the variable's
             if key in v.attrs:
                 ds[name].attrs[key] = np.asarray(v.attrs[key], dtype=v.dtype)
         ds[name].encoding = {} if "_FillValue" in v.attrs else {"_FillValue": None}
@@ -155,7 +163,7 @@ def peak_columns(n: int, ping: int) -> dict:
     return cols
 
 
-def test_the_survey_store_and_its_peaks_pass_the_cf_checker(tmp_path, monkeypatch):
+def test_the_survey_store_and_its_peaks_objects_and_lines_pass_the_cf_checker(tmp_path, monkeypatch):
     out = tmp_path / "survey.zarr"
     create_store(out, grid=GRID, n_pings=3, variables=["cf"], params={"threshold": 0.25}, input_names=["a.nc"])
     files = product_paths(out)
@@ -164,9 +172,16 @@ def test_the_survey_store_and_its_peaks_pass_the_cf_checker(tmp_path, monkeypatc
     for g in range(3):
         writer.add(peak_columns(4, g))
     writer.close()
+    extra = ["start_latitude_deg", "start_longitude_deg", "end_easting_m"]
+    objects = [{**{c: 1.5 for c in OBJECT_COLUMNS + tuple(extra)}, "object": k, "n_pings": 2} for k in range(2)]
+    write_feature_tables(out, (files["objects_csv"], files["objects_geojson"]), "objects", objects,
+                         list(OBJECT_COLUMNS) + extra, OBJECT_COLUMNS[:5], [[[10.2, 57.1]], [[10.2, 57.1]]], "objects")
+    lines = [{**{c: 1.5 for c in LINE_COLUMNS + tuple(extra)}, **{c: 1 for c in LINE_INTEGERS}, "kind": "pipeline"}]
+    write_feature_tables(out, (files["lines_csv"], files["lines_geojson"]), "lines", lines, list(LINE_COLUMNS) + extra,
+                         LINE_INTEGERS, [[[10.2, 57.1], [10.21, 57.1]]], "lines", {"kind": LINE_KINDS})
     update_store(out, {"time": 1.7e9 + 4.0 * np.arange(3), "latitude": np.full(3, 57.1), "longitude": np.full(3, 10.2)},
                  {"speed_m_s": None, "survey_complete": True})
-    for group in (None, "peaks"):
+    for group in (None, "peaks", "objects", "lines"):
         checked = zarr_as_netcdf(out, tmp_path / f"{group}.nc", group)
         assert_cf_clean(checked, monkeypatch)
     attrs = read_root_attrs(out)
