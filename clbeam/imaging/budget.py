@@ -3,10 +3,11 @@
 The error model (:mod:`clbeam.imaging.engine.errormodel`) predicts the intensity error of each setting
 from the array's band limit; it says nothing of the coherence factor, which peaks are picked on, and it
 cannot see everything a real geometry does (a jittered array, a source offset, roll, an element's
-tilt).  The budget here is measured instead: point echoes of a flat-band analytic wavelet are placed
-through the ping's own channels (element and source offsets from the grid centre, sample rate, record,
-weights, band), imaged by a candidate setting on small windows of the output grid around each point, and
-compared with their exact delay-and-sum, evaluated in closed form at every cell's travel times:
+tilt, a short pulse whose spectrum reaches past its nominal band).  The budget here is measured
+instead: point echoes of the ping's own compressed pulse are placed through its own channels (element
+and source offsets from the grid centre, sample rate, record, weights), imaged by a candidate setting on
+small windows of the output grid around each point, and compared with their exact delay-and-sum,
+evaluated at every cell's travel times (:class:`PulseWavelet`):
 
 - the intensity error: error energy over signal energy (dB) on cells within ``dynamic_range_db`` of
   the window's maximum;
@@ -37,11 +38,14 @@ log = logging.getLogger(__name__)
 WINDOW_HALF_DEG = 8.0
 WINDOW_RANGE_CELLS = 12
 #: the points' angles as fractions of the grid's largest |angle| (0: nadir, or the grid's middle) and their
-#: ranges as fractions of the grid's (and at most of the record's) largest range; every other point sits off
-#: the grid's nodes by these fractions of a range and an angle step
+#: ranges as fractions of the grid's (and at most of the record's) largest range; points off the grid's nodes
+#: sit these fractions of a range and an angle step from one
 POINT_ANGLE_FRACTIONS = (0.0, 0.3, 0.55, -0.75, -0.92)
-POINT_RANGE_FRACTIONS = (0.5, 0.9)
+POINT_RANGE_FRACTIONS = (0.5, 0.9, 0.7)
 OFF_NODE_CELLS = (0.37, 0.41)
+#: at each range, the points on nodes (None) or off them with their echo at this fraction of a sample: the
+#: time interpolators' errors, coherent over a short array's channels, change tenfold within a sample
+SAMPLE_FRACTIONS = (None, 0.5, 0.25)
 #: samples of record either side of a calibration echo (51 ms at 40 kHz: the longest interpolator reaches
 #: 32 samples, and the FFT upsampling's wrap-around of the wavelet's tails stays below -80 dB there)
 RECORD_PAD = 2048
@@ -100,16 +104,66 @@ def intensity_error_db(got: np.ndarray, exact: np.ndarray, dynamic_range_db: flo
     return float(10 * np.log10(max(np.sum((got[keep] - exact[keep]) ** 2), 1e-300) / np.sum(exact[keep] ** 2)))
 
 
-def flat_band_wavelet(t_s: np.ndarray, band_hz: tuple) -> np.ndarray:
-    """The analytic wavelet whose spectrum is flat over ``band_hz`` (Hz) and 0 outside, at times ``t_s``
-    (s), 1 at ``t = 0``: ``(exp(i 2 pi f1 t) - exp(i 2 pi f0 t)) / (i 2 pi t (f1 - f0))``."""
-    f0, f1 = float(band_hz[0]), float(band_hz[1])
-    t = np.asarray(t_s, dtype=np.float64)
-    small = np.abs(t) * (f1 - f0) < 1e-9
-    ts = np.where(small, 1.0, t)
-    out = (np.exp(2j * np.pi * f1 * ts) - np.exp(2j * np.pi * f0 * ts)) / (2j * np.pi * ts * (f1 - f0))
-    # near t = 0: the wavelet is the band's mean carrier to second order
-    return np.where(small, np.exp(1j * np.pi * (f0 + f1) * t), out)
+class PulseWavelet:
+    """A point echo's compressed analytic pulse ``psi(t)``: the band-limited function with the analytic
+    spectrum ``S_k`` on ``n`` bins ``k fs / n`` (periodic over ``n / fs`` s), ``psi(0) = 1``.
+
+    :meth:`samples` gives a record of delayed copies exactly (phase ramps on the bins); :meth:`__call__`
+    evaluates it at any time from a table 32 times finer than ``fs`` by four-point Lagrange interpolation
+    (the table holds the band within 1/64 of its own Nyquist: the interpolation's error, about
+    ``(pi nu)^4 / 6``, is below -100 dB).
+
+    Parameters
+    ----------
+    spectrum : numpy.ndarray
+        ``(n,)`` complex analytic spectrum (zero at negative frequencies).
+    sample_rate_hz : float
+        ``fs`` (Hz).
+    """
+
+    OVERSAMPLING = 32
+
+    def __init__(self, spectrum: np.ndarray, sample_rate_hz: float):
+        s = np.asarray(spectrum, dtype=np.complex128)
+        self.n, self.fs = s.size, float(sample_rate_hz)
+        self.spectrum = s * (self.n / np.sum(s))            # psi(0) = sum(S) / n = 1
+        fine = np.zeros(self.n * self.OVERSAMPLING, dtype=np.complex128)
+        fine[: self.n // 2] = self.spectrum[: self.n // 2]
+        self.table = np.fft.ifft(fine) * self.OVERSAMPLING          # psi at t = j / (8 fs), one period
+        self.freqs = np.fft.fftfreq(self.n, 1.0 / self.fs)
+
+    @classmethod
+    def of_replica(cls, replica: np.ndarray, sample_rate_hz: float, n: int) -> "PulseWavelet":
+        """The compressed pulse of a transmit ``replica`` (its analytic autocorrelation) on ``n`` bins."""
+        r = np.fft.fft(np.asarray(replica, dtype=np.float64), n)
+        power = np.abs(r) ** 2
+        power[n // 2:] = 0.0
+        power[1: n // 2] *= 2.0
+        return cls(power.astype(np.complex128), sample_rate_hz)
+
+    @classmethod
+    def flat(cls, band_hz: tuple, sample_rate_hz: float, n: int) -> "PulseWavelet":
+        """The wavelet whose spectrum is flat over ``band_hz`` (Hz) and 0 elsewhere, on ``n`` bins."""
+        f = np.fft.fftfreq(n, 1.0 / sample_rate_hz)
+        return cls(((f >= band_hz[0]) & (f <= band_hz[1])).astype(np.complex128), sample_rate_hz)
+
+    def samples(self, t0_s: float, n_samples: int, delays_s: np.ndarray) -> np.ndarray:
+        """``psi(t0 + j / fs - delay)`` for ``j < n_samples`` (at most the period) and each delay (s):
+        ``(n_delays, n_samples)``."""
+        require(n_samples <= self.n, OptionError, f"a record of {n_samples} samples exceeds the wavelet's period")
+        ramps = np.exp(-2j * np.pi * self.freqs[None, :] * (np.asarray(delays_s)[:, None] - t0_s))
+        return np.fft.ifft(self.spectrum[None, :] * ramps, axis=-1)[:, :n_samples]
+
+    def __call__(self, t_s: np.ndarray) -> np.ndarray:
+        """``psi`` at times ``t_s`` (s), any shape: four-point Lagrange interpolation of the table."""
+        x = np.asarray(t_s, dtype=np.float64) * self.fs * self.OVERSAMPLING
+        base = np.floor(x).astype(np.int64)
+        u = x - base
+        m = self.table.size
+        # Lagrange weights of the nodes -1, 0, 1, 2 at u in [0, 1)
+        weights = (-u * (u - 1) * (u - 2) / 6, (u + 1) * (u - 1) * (u - 2) / 2, -(u + 1) * u * (u - 2) / 2,
+                   (u + 1) * u * (u - 1) / 6)
+        return sum(self.table[(base + k) % m] * w for k, w in zip((-1, 0, 1, 2), weights))
 
 
 class CalibrationScene:
@@ -122,14 +176,29 @@ class CalibrationScene:
     grid : PolarGrid
         The output grid (its steps and span place the points and the windows).
     band_hz : (float, float)
-        The signal band (Hz).
+        The signal band (Hz): the wavelet's where no replica is given, and the beams' band limit.
+    replica : numpy.ndarray, optional
+        The transmit replica at ``inp``'s sample rate: the echoes are its compressed pulse, whose spectrum
+        reaches past the band's nominal edges (a short LFM's Fresnel ripples), as the ping's do.
     """
 
-    def __init__(self, inp: BeamformInput, grid: PolarGrid, band_hz: tuple):
+    def __init__(self, inp: BeamformInput, grid: PolarGrid, band_hz: tuple, replica: np.ndarray | None = None):
         self.band_hz = (float(band_hz[0]), float(band_hz[1]))
-        self.points, self.on_node, self.windows = _points_and_windows(inp, grid)
-        # one point a record (the wavelet's tails, 1 / t, would otherwise reach the other points' cells), each
-        # the part of the ping's record around its echoes
+        # a period of four replicas: the compressed pulse (twice the replica long) and its copies a period
+        # away stay clear of each other and of the record around it
+        n = 1 << int(math.ceil(math.log2(max(4 * (0 if replica is None else len(replica)), 2 * RECORD_PAD + 8192))))
+        self.wavelet = PulseWavelet.flat(self.band_hz, inp.sample_rate_hz, n) if replica is None else \
+            PulseWavelet.of_replica(replica, inp.sample_rate_hz, n)
+        self.points, self.on_node, spans = _points_and_windows(inp, grid)
+        # each point imaged on every angle of the grid (the beams the ping's image has) at its window's ranges
+        self.strips = [PolarGrid.beams(ranges, grid.angles_deg) for ranges, _ in spans]
+        self.angle_slices = [angles for _, angles in spans]
+        self.windows = [PolarGrid.beams(ranges, grid.angles_deg[angles]) for ranges, angles in spans]
+        # off-node points first, the far range first: where the errors are largest, so that a failing setting
+        # is told in a point or two
+        self.order = sorted(range(len(self.points)), key=lambda k: (self.on_node[k], -float(np.hypot(*self.points[k]))))
+        # one point a record (the wavelet's tails would otherwise reach the other points' cells), each the
+        # part of the ping's record around its echoes
         self.inputs = [self._record(inp, self._delays(inp, p)) for p in self.points]
         self.exact = [self._exact(inp, w, p) for w, p in zip(self.windows, self.points)]
 
@@ -140,8 +209,7 @@ class CalibrationScene:
         first = max(0, int(math.floor((delays_s.min() - inp.t0_s) * fs)) - RECORD_PAD)
         end = min(inp.n_samples, int(math.ceil((delays_s.max() - inp.t0_s) * fs)) + RECORD_PAD)
         t0 = inp.t0_s + first / fs
-        times = t0 + np.arange(end - first) / fs
-        data = flat_band_wavelet(times[None, :] - delays_s[:, None], self.band_hz)
+        data = self.wavelet.samples(t0, end - first, delays_s)
         return dataclasses.replace(inp, data=data, t0_s=t0, tables=None, table_source=None, data_token=object(),
                                    band_hz=self.band_hz)
 
@@ -163,7 +231,7 @@ class CalibrationScene:
         cells = np.stack(np.broadcast_arrays(window.ranges_m[None, :] * np.sin(th),
                                              window.ranges_m[None, :] * np.cos(th)), axis=-1)
         tau = self._delays(inp, cells)                                     # (n_channel, n_angle, n_range)
-        p = flat_band_wavelet(tau - self._delays(inp, point_yz)[:, None, None], self.band_hz)
+        p = self.wavelet(tau - self._delays(inp, point_yz)[:, None, None])
         w = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
         s = np.tensordot(w, p, axes=1)
         q = np.tensordot(w, np.abs(p) ** 2, axes=1)
@@ -171,30 +239,40 @@ class CalibrationScene:
         cf = np.where(q > 0, intensity / (np.sum(w) * np.where(q > 0, q, 1.0)), 0.0)
         return {"intensity": intensity, "cf": cf}
 
-    def measure(self, engine, interp: str, beams, upsample: int = 1, budget: Budget = Budget()) -> Measured:
-        """The errors of one setting (mode, beam sampling, upsampling) on these points."""
+    def measure(self, engine, interp: str, beams, upsample: int = 1, budget: Budget = Budget(),
+                stop_beyond: Budget | None = None) -> Measured:
+        """The errors of one setting (mode, beam sampling, upsampling) on these points; with
+        ``stop_beyond``, as soon as one point's figures miss that budget (the worst points first: off
+        nodes, far out)."""
         from clbeam.imaging.signal import upsample_analytic
 
         errors, cf_errors, node = [], [], [1.0]
-        for inp, window, exact, on_node in zip(self.inputs, self.windows, self.exact, self.on_node):
+        for k in self.order:
+            inp = self.inputs[k]
             if upsample > 1:
                 inp = dataclasses.replace(inp, data=upsample_analytic(inp.data, upsample),
                                           sample_rate_hz=inp.sample_rate_hz * upsample, data_token=object())
-            got = engine.beamform(inp, window, interp=interp, outputs=("intensity", "cf"), beams=beams)
+            got = engine.beamform(inp, self.strips[k], interp=interp, outputs=("intensity", "cf"), beams=beams)
+            intensity, cf = got.intensity[self.angle_slices[k]], got.cf[self.angle_slices[k]]
+            exact = self.exact[k]
             keep = exact["intensity"] >= exact["intensity"].max() * 10 ** (-budget.dynamic_range_db / 10)
-            errors.append(intensity_error_db(got.intensity.astype(np.float64), exact["intensity"],
-                                             budget.dynamic_range_db))
-            cf_errors.append(float(np.max(np.abs(got.cf[keep] - exact["cf"][keep]))))
-            if on_node:
-                ia, ir = np.unravel_index(np.argmax(exact["intensity"]), window.shape)
-                node.append(float(got.cf[ia, ir]))
-        return Measured(max(errors), max(cf_errors), min(node))
+            errors.append(intensity_error_db(intensity.astype(np.float64), exact["intensity"], budget.dynamic_range_db))
+            cf_errors.append(float(np.max(np.abs(cf[keep] - exact["cf"][keep]))))
+            if self.on_node[k]:
+                ia, ir = np.unravel_index(np.argmax(exact["intensity"]), exact["intensity"].shape)
+                node.append(float(cf[ia, ir]))
+            measured = Measured(max(errors), max(cf_errors), min(node))
+            if stop_beyond is not None and not measured.meets(stop_beyond):
+                break
+        return measured
 
 
 def _points_and_windows(inp: BeamformInput, grid: PolarGrid) -> tuple[list, list, list]:
     """Calibration points (earth-frame ``(y, z)`` from the grid centre, m), whether each sits on a node of
-    ``grid``, and a window of ``grid``'s steps around each: at every angle of :data:`POINT_ANGLE_FRACTIONS`
-    and range of :data:`POINT_RANGE_FRACTIONS`, on a node, and off one by :data:`OFF_NODE_CELLS`."""
+    ``grid``, and a window around each (``grid``'s ranges about it, and the slice of ``grid``'s angles within
+    :data:`WINDOW_HALF_DEG`): at every angle of :data:`POINT_ANGLE_FRACTIONS` and range of
+    :data:`POINT_RANGE_FRACTIONS`, on a node or off one by :data:`OFF_NODE_CELLS` with its echo at a
+    fraction of a sample (:data:`SAMPLE_FRACTIONS`)."""
     a, r = grid.angles_deg, grid.ranges_m
     da = float(np.median(np.diff(a))) if a.size > 1 else 0.1
     dr = float(np.median(np.diff(r))) if r.size > 1 else 0.2
@@ -204,23 +282,28 @@ def _points_and_windows(inp: BeamformInput, grid: PolarGrid) -> tuple[list, list
     reach = edge if middle == 0.0 else 0.5 * float(a[-1] - a[0])
     n_a = int(round(WINDOW_HALF_DEG / da))
     points, on_node, windows = [], [], []
-    for k, (rf, af) in enumerate((rf, af) for rf in POINT_RANGE_FRACTIONS for af in POINT_ANGLE_FRACTIONS):
-        r_point = min(rf * float(r[-1]), 0.9 * record_m - WINDOW_RANGE_CELLS * dr)
-        ir = int(np.clip(np.searchsorted(r, r_point), WINDOW_RANGE_CELLS, max(r.size - WINDOW_RANGE_CELLS - 1, 0)))
-        ia = int(np.argmin(np.abs(a - (middle + af * reach))))
-        shift = OFF_NODE_CELLS if k % 2 else (0.0, 0.0)
-        th, rr = math.radians(float(a[ia]) + shift[1] * da), float(r[ir]) + shift[0] * dr
-        points.append(np.array([rr * math.sin(th), rr * math.cos(th)]))
-        on_node.append(not k % 2)
-        windows.append(PolarGrid.beams(float(r[ir]) + dr * np.arange(-WINDOW_RANGE_CELLS, WINDOW_RANGE_CELLS + 1),
-                                       float(a[ia]) + da * np.arange(-n_a, n_a + 1)))
+    for rf, fraction in zip(POINT_RANGE_FRACTIONS, SAMPLE_FRACTIONS):
+        for af in POINT_ANGLE_FRACTIONS:
+            r_point = min(rf * float(r[-1]), 0.9 * record_m - WINDOW_RANGE_CELLS * dr)
+            ir = int(np.clip(np.searchsorted(r, r_point), WINDOW_RANGE_CELLS, max(r.size - WINDOW_RANGE_CELLS - 1, 0)))
+            ia = int(np.argmin(np.abs(a - (middle + af * reach))))
+            node = fraction is None
+            th = math.radians(float(a[ia]) + (0.0 if node else OFF_NODE_CELLS[1] * da))
+            rr = float(r[ir]) + (0.0 if node else OFF_NODE_CELLS[0] * dr)
+            if not node:   # its echo at a set fraction of a sample (half-way: where time interpolators err most)
+                x = (2.0 * rr / inp.sound_speed_m_s - inp.t0_s) * inp.sample_rate_hz
+                rr += (math.floor(x) + fraction - x) * inp.sound_speed_m_s / (2.0 * inp.sample_rate_hz)
+            points.append(np.array([rr * math.sin(th), rr * math.cos(th)]))
+            on_node.append(node)
+            windows.append((r[max(ir - WINDOW_RANGE_CELLS, 0): ir + WINDOW_RANGE_CELLS + 1],
+                            slice(max(ia - n_a, 0), ia + n_a + 1)))
     return points, on_node, windows
 
 
-#: the measured figures must hold the budget with some room: ten points stand for every cell of the grid.
-#: On the tuning scenes (two jittered, rolled arrays with source offsets, on-node points at other ranges)
-#: the calibration's |dCF| was 1.3-4 times the scenes' own, its intensity error 1-4 dB above theirs
-CF_ERROR_MARGIN = 1.25
+#: the measured figures must hold the budget with some room: fifteen points stand for every cell of the grid,
+#: and a point's |dCF| changes threefold with a few millimetres of range or a profile's refraction (the
+#: tuning set: two jittered, rolled arrays with source offsets, two of the random draws)
+CF_ERROR_MARGIN = 1.5
 NODE_DEFICIT_MARGIN = 1.5
 ERROR_DB_MARGIN = 1.0
 
@@ -243,7 +326,7 @@ def choose_measured_setting(candidates: list, scene: CalibrationScene, engine, b
     tried = []
     for setting in sorted(candidates, key=lambda s: (s.cost, s.error_db)):
         try:
-            measured = scene.measure(engine, setting.interp, setting.beams, setting.upsample, budget)
+            measured = scene.measure(engine, setting.interp, setting.beams, setting.upsample, budget, stop_beyond=strict)
         except OptionError as exc:   # e.g. a basebanded mode without a carrier
             log.debug("setting %s not measured: %s", setting.describe(), exc)
             continue

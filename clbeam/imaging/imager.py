@@ -417,19 +417,21 @@ class Imager:
             setting = choose_setting(predicted, opts.max_error_db, interp=forced,
                                      upsample=opts.upsample or (1 if forced else None), beams=beams)
             if geometry is not None and forced is None and beams == "auto" and opts.upsample is None:
-                setting = self._measured_setting(predicted, geometry, band)
+                setting = self._measured_setting(predicted, geometry, band, ping)
             log.info("imaging setting: %s", setting.describe())
             self._settings[key] = setting
         return setting
 
-    def _measured_setting(self, predicted: list, geometry: BeamformInput, band) -> Setting:
+    def _measured_setting(self, predicted: list, geometry: BeamformInput, band, ping: Ping) -> Setting:
         """The cheapest of the settings predicted within the intensity budget whose errors measured on
-        ``geometry`` hold the whole budget (:func:`clbeam.imaging.budget.choose_measured_setting`)."""
+        echoes of the ping's pulse through ``geometry`` hold the whole budget
+        (:func:`clbeam.imaging.budget.choose_measured_setting`)."""
         opts = self.options
         budget = Budget(max_error_db=opts.max_error_db, max_cf_error=opts.max_cf_error)
         candidates = [s for s in predicted if s.error_db <= opts.max_error_db]
-        setting, measured = choose_measured_setting(candidates, CalibrationScene(geometry, self.grid, band),
-                                                    self.engine, budget)
+        replica = ping.pulse.replica(ping.sample_rate_hz) if ping.pulse is not None else None
+        scene = CalibrationScene(geometry, self.grid, band, replica)
+        setting, measured = choose_measured_setting(candidates, scene, self.engine, budget)
         return dataclasses.replace(setting, measured=measured.describe())
 
     # -- sound-speed profile ----------------------------------------------
@@ -449,7 +451,7 @@ class Imager:
             return inp
         if profile is None:
             profile = SoundSpeedProfile.constant(inp.sound_speed_m_s)
-        elif c_sed is None:
+        elif c_sed is None and not profile.is_constant:   # a constant speed holds at any depth
             check_profile_reaches_grid(profile, self.grid, centre_z_m)
         if c_sed is not None:
             depth = self.options.seabed_depth_m

@@ -8,7 +8,7 @@ from scenes import point_ping, polar_point
 from scipy.integrate import quad
 
 from clbeam.errors import OptionError
-from clbeam.imaging.budget import Budget, CalibrationScene, choose_measured_setting, flat_band_wavelet, with_margins
+from clbeam.imaging.budget import Budget, CalibrationScene, PulseWavelet, choose_measured_setting, with_margins
 from clbeam.imaging.engine import get_engine
 from clbeam.imaging.engine.errormodel import predicted_settings
 from clbeam.imaging.imager import Imager, ImagingOptions
@@ -18,23 +18,42 @@ BAND = (2000.0, 9000.0)
 GRID = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.2, max_range_m=120.0, angles_deg=(-50, 50))
 
 
-def test_flat_band_wavelet_is_the_band_integral_of_the_carrier():
-    """psi(t) = 1/(f1 - f0) * integral over the band of exp(i 2 pi f t) df, by quadrature."""
-    for t in (0.0, 1e-9, 3.3e-5, -2.1e-4, 1.7e-3):
-        re = quad(lambda f, t=t: np.cos(2 * np.pi * f * t), *BAND, limit=200)[0]
-        im = quad(lambda f, t=t: np.sin(2 * np.pi * f * t), *BAND, limit=200)[0]
+FS = 40000.0
+N_BINS = 1 << 14
+
+
+def test_flat_wavelet_is_the_band_integral_of_the_carrier():
+    """psi(t) = 1/(f1 - f0) * integral over the band of exp(i 2 pi f t) df, by quadrature; the wavelet is its
+    sum over bins fs / n apart, within the Riemann sum's error of about two bins over the band."""
+    psi = PulseWavelet.flat(BAND, FS, N_BINS)
+    tol = 2 * (FS / N_BINS) / (BAND[1] - BAND[0])
+    for t in (0.0, 1e-6, 3.3e-5, -2.1e-4, 1.7e-3):
+        re = quad(lambda f, t=t: np.cos(2 * np.pi * f * t), *BAND, limit=400)[0]
+        im = quad(lambda f, t=t: np.sin(2 * np.pi * f * t), *BAND, limit=400)[0]
         want = (re + 1j * im) / (BAND[1] - BAND[0])
-        assert abs(flat_band_wavelet(np.array([t]), BAND)[0] - want) < 1e-9
+        assert abs(psi(np.array([t]))[0] - want) < tol, t
 
 
-def test_flat_band_wavelet_spectrum_is_zero_outside_the_band():
-    fs = 40000.0
-    t = (np.arange(1 << 15) - (1 << 14)) / fs
-    spec = np.abs(np.fft.fft(flat_band_wavelet(t, BAND) * np.hanning(t.size)))
-    f = np.fft.fftfreq(t.size, 1 / fs)
-    inside = (f > BAND[0] + 200) & (f < BAND[1] - 200)
-    outside = (f < BAND[0] - 400) | (f > BAND[1] + 400)
-    assert spec[outside].max() < 1e-4 * spec[inside].mean()
+def test_pulse_wavelet_is_the_replicas_normalised_autocorrelation():
+    """Its real part at whole lags is the replica's autocorrelation over its energy (numpy.correlate)."""
+    from clbeam.model.pulse import Pulse
+
+    replica = Pulse(f0_hz=2000.0, f1_hz=9000.0, duration_s=0.01).replica(FS)
+    acf = np.correlate(replica, replica, mode="full")[replica.size - 1:] / np.dot(replica, replica)
+    psi = PulseWavelet.of_replica(replica, FS, N_BINS)
+    lags = np.arange(60)
+    np.testing.assert_allclose(psi(lags / FS).real, acf[:60], atol=1e-9)
+
+
+def test_pulse_wavelet_records_and_evaluation_agree():
+    """The phase-ramp records and the table's windowed sinc are the same band-limited function (-100 dB)."""
+    from clbeam.model.pulse import Pulse
+
+    psi = PulseWavelet.of_replica(Pulse(f0_hz=2000.0, f1_hz=9000.0, duration_s=0.01).replica(FS), FS, N_BINS)
+    delays = np.array([0.0123456, 0.0201357])
+    rec = psi.samples(0.01, 800, delays)
+    t = 0.01 + np.arange(800) / FS
+    np.testing.assert_allclose(rec, psi(t[None, :] - delays[:, None]), atol=1e-5)  # -100 dB of psi(0) = 1
 
 
 def _input(**ping_args):
@@ -42,9 +61,10 @@ def _input(**ping_args):
     return Imager(GRID, ImagingOptions(interp="lanczos4", beams=None)).beamform_input(ping)
 
 
-def test_exact_sums_equal_the_reference_windowed_sinc_of_the_calibration_records():
-    """The closed-form sums against the float64 reference's 64-tap interpolation of the same records: within
-    -80 dB of the peak (the windowed sinc's own error), far below the -40 to -70 dB the budget measures."""
+def test_exact_sums_of_a_flat_band_equal_the_reference_windowed_sinc_of_the_calibration_records():
+    """The calibration's sums against the float64 reference's 64-tap interpolation of the same records
+    (flat-band echoes, which that interpolator resolves): within -80 dB of the peak, far below the -40 to
+    -70 dB the budget measures."""
     inp = _input(roll_deg=4.0, heave_m=0.3, source_m=(0.0, 0.3, 0.2))
     scene = CalibrationScene(inp, GRID, BAND)
     ref = get_engine("reference")
@@ -52,6 +72,27 @@ def test_exact_sums_equal_the_reference_windowed_sinc_of_the_calibration_records
         got = ref.beamform(cin, window, interp="exact", outputs=("intensity", "cf"))
         np.testing.assert_allclose(got.intensity, exact["intensity"], rtol=0, atol=1e-4 * exact["intensity"].max())
         np.testing.assert_allclose(got.cf, exact["cf"], rtol=0, atol=1e-4)
+
+
+def test_exact_sums_of_the_pulse_equal_a_direct_fourier_sum():
+    """With the replica's compressed pulse (energy up to Nyquist, which a 64-tap interpolator attenuates) the
+    sums at cells against the wavelet summed bin by bin at each channel's delay: within 1e-5."""
+    from clbeam.model.pulse import Pulse
+
+    inp = _input(roll_deg=4.0, heave_m=0.3, source_m=(0.0, 0.3, 0.2))
+    scene = CalibrationScene(inp, GRID, BAND, Pulse(f0_hz=2000.0, f1_hz=9000.0, duration_s=0.02).replica(FS))
+    psi = scene.wavelet
+    k = np.arange(psi.n // 2)
+    rng = np.random.default_rng(4)
+    for point, window, exact in list(zip(scene.points, scene.windows, scene.exact))[::4]:
+        for ia, ir in zip(rng.integers(0, window.shape[0], 6), rng.integers(0, window.shape[1], 6)):
+            th = np.deg2rad(window.angles_deg[ia])
+            cell = window.ranges_m[ir] * np.array([np.sin(th), np.cos(th)])
+            tau = CalibrationScene._delays(inp, cell) - CalibrationScene._delays(inp, point)
+            p = np.exp(2j * np.pi * np.outer(tau, k * FS / psi.n)) @ psi.spectrum[: psi.n // 2] / psi.n
+            s, q = p.sum(), np.sum(np.abs(p) ** 2)
+            assert abs(abs(s) ** 2 - exact["intensity"][ia, ir]) <= 1e-5 * exact["intensity"].max()
+            assert abs(abs(s) ** 2 / (len(p) * q) - exact["cf"][ia, ir]) <= 1e-5
 
 
 def test_the_chosen_setting_is_the_cheapest_measured_within_the_margins():
