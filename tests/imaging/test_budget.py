@@ -132,3 +132,20 @@ def test_cf_budget_option_is_checked_in_one_line(tmp_path, capsys):
     rc = cli.main(["image", str(tmp_path / "none.nc"), "-o", str(tmp_path / "o.nc"), "--max-cf-error", "2"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "CF error budget" in err[0], err
+
+
+def test_image_file_records_both_budgets_and_the_measured_setting(tmp_path):
+    import xarray as xr
+    from scenes import ping_dataset
+
+    from clbeam import cli
+
+    ping = point_ping(polar_point(60.0, 10.0), record_s=0.2, roll_deg=2.0)
+    ping_dataset(ping).to_netcdf(tmp_path / "p.nc")
+    assert cli.main(["image", str(tmp_path / "p.nc"), "-o", str(tmp_path / "i.nc"), "--max-range", "100",
+                     "--angles", "-40", "40", "--max-cf-error", "0.03", "-q"]) == 0
+    with xr.open_dataset(tmp_path / "i.nc") as ds:
+        assert ds.attrs["max_cf_error"] == 0.03 and ds.attrs["max_error_db"] == -40.0
+        setting = ds.attrs["imaging_setting"]
+    measured_cf = float(setting.split("|dCF| ")[1].split(",")[0])
+    assert measured_cf <= 0.03 / 1.5, setting
