@@ -19,6 +19,7 @@ from clbeam.cli import (
     avo,
     bench,
     demo,
+    detectability,
     devices,
     docs,
     forward,
@@ -36,7 +37,8 @@ from clbeam.errors import ClbeamError
 #: exit status of bad input (one line on stderr)
 EXIT_BAD_INPUT = 2
 #: the subcommand modules, in the order ``clbeam --help`` lists them
-COMMANDS = (devices, image, peaks, simulate, demo, survey, profile, import_segy, avo, forward, sediment_speed, bench, docs)
+COMMANDS = (devices, image, peaks, simulate, demo, survey, profile, import_segy, avo, forward, sediment_speed, detectability,
+            bench, docs)
 
 
 def register(subparsers, command) -> argparse.ArgumentParser:

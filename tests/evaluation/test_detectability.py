@@ -1,0 +1,221 @@
+"""The detection-performance model (docs/detectability.md) against closed forms, direct Monte Carlo of
+the channels and, slowly, simulated surveys."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from clbeam.errors import OptionError
+from clbeam.evaluation.detectability import (
+    Environment,
+    Pipe,
+    absorption_db_per_m,
+    band,
+    detection,
+    echo_spectrum,
+    line_response,
+    pipe_geometry,
+    reverberation,
+)
+from clbeam.evaluation.detectability_stats import ChannelModel, Tests, cf_exceedance, monte_carlo_tests
+from clbeam.evaluation.detectability_sweep import crossing_range, line_spacing, parse_ranges, predict, sweep
+from clbeam.imaging.detection import false_alarm_probability, smoothing_eigenvalues
+from clbeam.sim import load_scene
+from clbeam.sim.physics import attenuation_np_per_m_hz
+
+M = 64
+
+
+@pytest.fixture(scope="module")
+def env():
+    return Environment(load_scene("line4"), absorption_db_per_km=0.0)
+
+
+def _binomial_tol(p: float, n: int, k: float = 4.0) -> float:
+    return k * math.sqrt(max(p * (1 - p), 1.0 / n) / n)
+
+
+def _direct_cf(snr: float, n: int, rng) -> np.ndarray:
+    """CF of one cell drawn channel by channel: a fixed coherent part in complex Gaussian noise."""
+    w = (rng.standard_normal((n, M)) + 1j * rng.standard_normal((n, M))) / math.sqrt(2)
+    p = math.sqrt(snr) + w
+    return np.abs(p.sum(axis=1)) ** 2 / (M * np.sum(np.abs(p) ** 2, axis=1))
+
+
+def test_cf_of_pure_noise_is_beta_1_m_minus_1():
+    t = np.array([0.01, 0.03, 0.06, 0.1])
+    np.testing.assert_allclose(cf_exceedance(t, M, 0.0), (1 - t) ** (M - 1), rtol=1e-6)
+
+
+def test_cf_of_a_pure_echo_is_one():
+    assert float(cf_exceedance(0.999, M, 1e9)) == pytest.approx(1.0, abs=1e-9)
+    assert float(cf_exceedance(1.0, M, 1e9)) == 0.0
+
+
+@pytest.mark.parametrize("snr_db, t", [(-6.0, 0.15), (0.0, 0.4), (3.0, 0.6)])
+def test_cf_of_echo_in_noise_matches_direct_draws(snr_db, t):
+    n = 40000
+    cf = _direct_cf(10 ** (snr_db / 10), n, np.random.default_rng(1))
+    p = float(np.mean(cf > t))
+    assert float(cf_exceedance(t, M, 10 ** (snr_db / 10))) == pytest.approx(p, abs=_binomial_tol(p, n))
+
+
+def _noise_model(env, echo_scale: float = 0.0) -> ChannelModel:
+    f, w = band(env)
+    return ChannelModel(f, w, np.full(f.size, echo_scale, complex), 1.0, (), M, float(f[1] - f[0]))
+
+
+@pytest.mark.parametrize("exact", [True, False])
+def test_smoothed_cf_of_noise_matches_the_saddlepoint_tail(env, exact):
+    """The channel model's noise (correlated along range as the compressed replica) against the
+    Lugannani-Rice tail of :mod:`clbeam.imaging.detection` (within its 5 % and the draws' error)."""
+    so = env.scene.sonar
+    lam = smoothing_eigenvalues(0.2, so.pulse_f1_hz - so.pulse_f0_hz, env.c)
+    res = monte_carlo_tests(_noise_model(env), Tests(), clutter=1.0, sound_speed_m_s=env.c, draws=8000, seed=2,
+                            exact=exact)
+    cf = res["cf_refined"]
+    for q in (0.5, 0.1, 0.02):
+        x = float(np.quantile(cf, 1 - q))
+        pfa = float(false_alarm_probability(x, M, lam))
+        assert pfa == pytest.approx(q, abs=0.05 * q + _binomial_tol(q, cf.size))
+
+
+def test_fast_channel_sums_match_the_channel_by_channel_draws(env):
+    """Pd of an echo at a middle SNR, with reverberation off the echo's direction, both ways."""
+    f, w = band(env)
+    echo = np.full(f.size, 0.55, complex)
+    rev = ((np.full(f.size, 0.5 * f[1] - 0.5 * f[0]) / np.sum(w ** 2), 0.02),)
+    model = ChannelModel(f, w, echo, 1.0, rev, M, float(f[1] - f[0]))
+    fast = monte_carlo_tests(model, Tests(), clutter=1.0, sound_speed_m_s=env.c, draws=4000, seed=3)
+    exact = monte_carlo_tests(model, Tests(), clutter=1.0, sound_speed_m_s=env.c, draws=4000, seed=4, exact=True)
+    assert 0.1 < exact["pd"] < 0.9
+    assert fast["pd"] == pytest.approx(exact["pd"], abs=_binomial_tol(exact["pd"], 4000, 5.0))
+
+
+def test_broadside_echo_is_the_stationary_phase_cylinder_echo(env):
+    """``ρ T H sqrt(λR/2) / R² e^(−αfℓ)``: spherical spreading to ``R^-1.5``, Snell path, cylinder."""
+    pipe = Pipe(burial_m=1.0)
+    f = np.array([3000.0, 5500.0, 8000.0])
+    for r in (400.0, 920.0):
+        geo = pipe_geometry(env, pipe, r)
+        sb = env.scene.seabed
+        h = env.height_m
+        slant = math.sqrt(r * r + (h + 1.0) ** 2)
+        assert geo["slant_m"] == pytest.approx(slant, rel=1e-12)
+        expected = (0.8 * geo["transmission"] * line_response(pipe, f, env.c * sb.sound_speed_ratio)
+                    * np.sqrt(env.c / f * slant / 2) / slant ** 2
+                    * np.exp(-attenuation_np_per_m_hz(sb) * f * geo["sediment_m"]))
+        np.testing.assert_allclose(np.abs(echo_spectrum(env, pipe, r, f, method="stationary")), expected, rtol=1e-9)
+
+
+def test_numerical_integral_along_the_pipe_equals_stationary_phase_at_broadside(env):
+    pipe = Pipe(burial_m=1.0)
+    f = np.linspace(2500.0, 8500.0, 7)
+    sp = echo_spectrum(env, pipe, 700.0, f, method="stationary")
+    num = echo_spectrum(env, pipe, 700.0, f, method="integral")
+    np.testing.assert_allclose(np.abs(num), np.abs(sp), rtol=0.03)
+    np.testing.assert_allclose(np.angle(num / sp), 0.0, atol=0.05)
+
+
+def test_large_cylinder_target_strength_is_urick_with_the_fresnel_length(env):
+    """``ka >> 1``: ``|G|² R⁴ / (ρ T)² = a L² / (2λ)`` with ``L² = λ R / 2`` (Urick's broadside cylinder over
+    the first Fresnel zone)."""
+    pipe = Pipe(radius_m=5.0, burial_m=1e-6)
+    f = np.array([6000.0])
+    geo = pipe_geometry(env, pipe, 500.0)
+    r, lam = geo["slant_m"], env.c / f[0]
+    g = abs(echo_spectrum(env, pipe, 500.0, f, method="stationary")[0])
+    # in water (burial ~0): k a uses the sediment's speed; G(ka) -> 1 within (ka)^-3 / 2
+    sigma = g ** 2 * r ** 4 / (0.8 * geo["transmission"]) ** 2
+    urick = pipe.radius_m * (lam * r / 2) / (2 * lam) * (env.c / (env.c * env.scene.seabed.sound_speed_ratio))
+    assert sigma == pytest.approx(urick, rel=1e-4)
+
+
+def test_water_absorption_matches_ainslie_mccolm_and_enters_twice_the_range():
+    sc = load_scene("line4")
+    fg = Environment(sc, absorption_db_per_km=None, temperature_c=10.0, salinity_psu=35.0)
+    f = np.array([2000.0, 5000.0, 9000.0])
+    # Ainslie & McColm (1998), pH 8, depth in km
+    fk, t, s, z = f / 1000, 10.0, 35.0, 0.5 * sc.seabed.depth_m / 1000
+    f1, f2 = 0.78 * math.sqrt(s / 35) * math.exp(t / 26), 42 * math.exp(t / 17)
+    am = (0.106 * f1 * fk ** 2 / (f1 ** 2 + fk ** 2) + 0.52 * (1 + t / 43) * (s / 35) * math.exp(-z / 6) * f2 * fk ** 2
+          / (f2 ** 2 + fk ** 2) + 0.00049 * fk ** 2 * math.exp(-(t / 27 + z / 17))) / 1000
+    np.testing.assert_allclose(absorption_db_per_m(fg, f), am, rtol=0.1)
+    pipe, r = Pipe(), 900.0
+    ratio = np.abs(echo_spectrum(fg, pipe, r, f, method="stationary")
+                   / echo_spectrum(Environment(sc, absorption_db_per_km=0.0), pipe, r, f, method="stationary"))
+    np.testing.assert_allclose(20 * np.log10(ratio), -absorption_db_per_m(fg, f) * 2 * pipe_geometry(fg, pipe, r)["slant_m"],
+                               rtol=1e-9)
+
+
+def test_seabed_reverberation_of_a_narrow_beam_is_the_ring_closed_form(env):
+    """Lambert seabed, beam narrow: ``σ c / (2 R² ρ) ∫ b² du`` per unit delay; ``∫ sinc²(L f u / c) du =
+    c / (L f)`` when the cut is far beyond the main lobe (here the high band, the taper's edge left in
+    as a bound)."""
+    f = np.array([9000.0])
+    pipe = Pipe(burial_m=0.0 + 1e-9)
+    r = 800.0
+    rev = {x["name"]: x for x in reverberation(env, pipe, r, f)}
+    geo = pipe_geometry(env, pipe, r)
+    slant, h = geo["delay_range_m"], env.height_m
+    rho = math.sqrt(slant ** 2 - h ** 2)
+    sc = env.scene.seabed.scattering
+    sigma = 10 ** (sc.strength_db / 10) * (h / slant) ** sc.grazing_exponent
+    closed = sigma * env.c / (2 * slant ** 2 * rho) * env.c / (env.scene.sonar.tx_length_m * f[0])
+    assert float(rev["seabed"]["density"][0]) == pytest.approx(closed, rel=0.03)
+
+
+def test_crossing_range_and_line_spacing_on_known_curves():
+    r = np.array([100.0, 200.0, 300.0, 400.0])
+    assert crossing_range(r, [1.0, 1.0, 0.6, 0.2], 0.9) == pytest.approx(225.0)
+    assert crossing_range(r, [1.0, 1.0, 0.6, 0.2], 0.5) == pytest.approx(325.0)
+    assert math.isinf(crossing_range(r, [1, 1, 1, 1], 0.5)) and math.isnan(crossing_range(r, [0.1] * 4, 0.5))
+    # Pd 1 out to 300 m then 0: a pipe anywhere between two lines 600 m apart is within 300 m of one
+    rr = np.arange(50.0, 1001.0, 1.0)
+    step = np.where(rr <= 300.0, 1.0, 0.0)
+    assert line_spacing(rr, step) == pytest.approx(600.0, abs=2.5)
+    # Pd 0.7 everywhere: two lines give 1 - 0.3² = 0.91 over the whole gap out to the sweep's end
+    assert line_spacing(rr, np.full(rr.size, 0.7)) == pytest.approx(1000.0, abs=2.5)
+
+
+def test_bad_input_is_one_line():
+    with pytest.raises(OptionError, match="radius"):
+        Pipe(radius_m=-0.1)
+    with pytest.raises(OptionError, match="no pipelines"):
+        predict("point")
+    with pytest.raises(OptionError, match="beyond the record"):
+        predict("line4", ranges_m=[500.0, 2000.0])
+    with pytest.raises(OptionError, match="START:STOP:STEP"):
+        parse_ranges("100:200")
+
+
+def test_pd_falls_with_range_and_with_noise(env):
+    """More noise, shorter range; the default and a looser threshold order as they must."""
+    r = np.array([900.0, 1800.0, 2400.0])
+    pipe = Pipe()
+
+    loud = replace(env, noise_offset_db=6.0)
+    quiet = [row["pd"] for row in sweep(env, pipe, r, draws=512)]
+    noisy = [row["pd"] for row in sweep(loud, pipe, r, draws=512)]
+    assert quiet[0] > 0.95 and quiet[-1] < quiet[0]
+    assert all(n <= q + 0.05 for n, q in zip(noisy, quiet))
+    loose = [row["pd"] for row in sweep(replace(env, tests=Tests(threshold=0.2)), pipe, r, draws=512)]
+    assert all(lo >= q - 0.05 for lo, q in zip(loose, quiet))
+
+
+@pytest.mark.slow
+def test_predicted_pd_matches_a_small_simulated_survey():
+    """Mud, 1 m and 2 m burial, three ranges, a few pings: measured fraction within 0.15 of the prediction
+    plus its binomial error."""
+    from clbeam.evaluation.detectability_validation import measure, validation_scene
+
+    ranges, pings = (450.0, 1100.0, 1450.0), 6
+    scene = validation_scene("mud", ranges, pings=pings)
+    counts = measure(scene, seed=5)
+    env = Environment(scene, absorption_db_per_km=0.0)
+    for name, (hits, n) in counts.items():
+        b = 1.0 if name[0] == "S" else 2.0
+        pd = detection(env, Pipe(burial_m=b), float(name[1:]), draws=2048)["pd"]
+        assert hits / n == pytest.approx(pd, abs=0.15 + 2 * math.sqrt(max(pd * (1 - pd), 0.02) / n)), name
