@@ -46,6 +46,10 @@ OFF_NODE_CELLS = (0.37, 0.41)
 #: at each range, the points on nodes (None) or off them with their echo at this fraction of a sample: the
 #: time interpolators' errors, coherent over a short array's channels, change tenfold within a sample
 SAMPLE_FRACTIONS = (None, 0.5, 0.25)
+#: and a sweep of echoes below the array, off nodes, at these fractions of a sample: there every channel's
+#: delay has about the same fraction, and the time interpolation's error adds up coherently
+SWEEP_RANGE_FRACTION = 0.6
+SWEEP_SAMPLE_FRACTIONS = (0.125, 0.375, 0.625, 0.75, 0.875)
 #: samples of record either side of a calibration echo (51 ms at 40 kHz: the longest interpolator reaches
 #: 32 samples, and the FFT upsampling's wrap-around of the wavelet's tails stays below -80 dB there)
 RECORD_PAD = 2048
@@ -272,7 +276,8 @@ def _points_and_windows(inp: BeamformInput, grid: PolarGrid) -> tuple[list, list
     ``grid``, and a window around each (``grid``'s ranges about it, and the slice of ``grid``'s angles within
     :data:`WINDOW_HALF_DEG`): at every angle of :data:`POINT_ANGLE_FRACTIONS` and range of
     :data:`POINT_RANGE_FRACTIONS`, on a node or off one by :data:`OFF_NODE_CELLS` with its echo at a
-    fraction of a sample (:data:`SAMPLE_FRACTIONS`)."""
+    fraction of a sample (:data:`SAMPLE_FRACTIONS`), and the sweep below the array
+    (:data:`SWEEP_SAMPLE_FRACTIONS`)."""
     a, r = grid.angles_deg, grid.ranges_m
     da = float(np.median(np.diff(a))) if a.size > 1 else 0.1
     dr = float(np.median(np.diff(r))) if r.size > 1 else 0.2
@@ -282,28 +287,31 @@ def _points_and_windows(inp: BeamformInput, grid: PolarGrid) -> tuple[list, list
     reach = edge if middle == 0.0 else 0.5 * float(a[-1] - a[0])
     n_a = int(round(WINDOW_HALF_DEG / da))
     points, on_node, windows = [], [], []
-    for rf, fraction in zip(POINT_RANGE_FRACTIONS, SAMPLE_FRACTIONS):
-        for af in POINT_ANGLE_FRACTIONS:
-            r_point = min(rf * float(r[-1]), 0.9 * record_m - WINDOW_RANGE_CELLS * dr)
-            ir = int(np.clip(np.searchsorted(r, r_point), WINDOW_RANGE_CELLS, max(r.size - WINDOW_RANGE_CELLS - 1, 0)))
-            ia = int(np.argmin(np.abs(a - (middle + af * reach))))
-            node = fraction is None
-            th = math.radians(float(a[ia]) + (0.0 if node else OFF_NODE_CELLS[1] * da))
-            rr = float(r[ir]) + (0.0 if node else OFF_NODE_CELLS[0] * dr)
-            if not node:   # its echo at a set fraction of a sample (half-way: where time interpolators err most)
-                x = (2.0 * rr / inp.sound_speed_m_s - inp.t0_s) * inp.sample_rate_hz
-                rr += (math.floor(x) + fraction - x) * inp.sound_speed_m_s / (2.0 * inp.sample_rate_hz)
-            points.append(np.array([rr * math.sin(th), rr * math.cos(th)]))
-            on_node.append(node)
-            windows.append((r[max(ir - WINDOW_RANGE_CELLS, 0): ir + WINDOW_RANGE_CELLS + 1],
-                            slice(max(ia - n_a, 0), ia + n_a + 1)))
+    sweep = [(SWEEP_RANGE_FRACTION, f, 0.0) for f in SWEEP_SAMPLE_FRACTIONS]
+    grid_points = [(rf, fraction, af) for rf, fraction in zip(POINT_RANGE_FRACTIONS, SAMPLE_FRACTIONS)
+                   for af in POINT_ANGLE_FRACTIONS]
+    for rf, fraction, af in grid_points + sweep:
+        r_point = min(rf * float(r[-1]), 0.9 * record_m - WINDOW_RANGE_CELLS * dr)
+        ir = int(np.clip(np.searchsorted(r, r_point), WINDOW_RANGE_CELLS, max(r.size - WINDOW_RANGE_CELLS - 1, 0)))
+        ia = int(np.argmin(np.abs(a - (middle + af * reach))))
+        node = fraction is None
+        th = math.radians(float(a[ia]) + (0.0 if node else OFF_NODE_CELLS[1] * da))
+        rr = float(r[ir]) + (0.0 if node else OFF_NODE_CELLS[0] * dr)
+        if not node:   # its echo at a set fraction of a sample (half-way: where time interpolators err most)
+            x = (2.0 * rr / inp.sound_speed_m_s - inp.t0_s) * inp.sample_rate_hz
+            rr += (math.floor(x) + fraction - x) * inp.sound_speed_m_s / (2.0 * inp.sample_rate_hz)
+        points.append(np.array([rr * math.sin(th), rr * math.cos(th)]))
+        on_node.append(node)
+        windows.append((r[max(ir - WINDOW_RANGE_CELLS, 0): ir + WINDOW_RANGE_CELLS + 1],
+                        slice(max(ia - n_a, 0), ia + n_a + 1)))
     return points, on_node, windows
 
 
 #: the measured figures must hold the budget with some room: fifteen points stand for every cell of the grid,
-#: and a point's |dCF| changes threefold with a few millimetres of range or a profile's refraction (the
-#: tuning set: two jittered, rolled arrays with source offsets, two of the random draws)
-CF_ERROR_MARGIN = 1.5
+#: and a point's |dCF| changes threefold with a few millimetres of range or a profile's refraction.  Chosen
+#: on the scene zoo (bench/zoo.py): Lanczos-4's time interpolation measured 0.011-0.013 on the calibration
+#: and reached 0.023 on points 160-1000 m beyond a 60 m/s jump
+CF_ERROR_MARGIN = 2.0
 NODE_DEFICIT_MARGIN = 1.5
 ERROR_DB_MARGIN = 1.0
 
