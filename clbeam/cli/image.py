@@ -45,6 +45,8 @@ def _check(args, opts) -> None:
     check_output_path(args.output, args.pings)
     if args.peaks:
         check_output_path(args.peaks, args.pings)
+        require("cf" in opts.outputs, OptionError,
+                f"--peaks needs the cf output (the peaks are found on the smoothed CF), got --outputs {args.outputs}")
     require(args.stack >= 1, OptionError, f"--stack must be >= 1 ping, got {args.stack}")
     require(args.stack == 1 or "cf" in opts.outputs, OptionError, "--stack needs the cf output")
 
@@ -68,6 +70,7 @@ def run(args) -> int:
     """Image every ping of the file; write the images (and the peaks)."""
     from clbeam import __version__
     from clbeam.imaging.imager import Imager
+    from clbeam.imaging.peaks import option_columns
     from clbeam.imaging.stacking import PingStack
     from clbeam.io.images import ImageWriter
     from clbeam.io.peaks import write_peaks_csv
@@ -102,7 +105,8 @@ def run(args) -> int:
             remove_partial(out)  # no half-written image file left behind
             raise
         if args.peaks:
-            write_peaks_csv(peaks, args.peaks)
+            write_peaks_csv(peaks, args.peaks, option_columns(refine=opts.refine_peaks and stack is None,
+                                                              mlh=opts.mlh))
     dt = time.perf_counter() - t0
     if not args.quiet:
         print(f"imaged {len(pings)} ping(s) on a {grid.shape[0]} x {grid.shape[1]} grid in {dt:.1f} s "

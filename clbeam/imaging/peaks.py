@@ -36,11 +36,14 @@ from clbeam.imaging.detection import (
 )
 from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.mlh import (
+    MLH_COLUMNS,
     arc_tolerances,
     detection_rows,
     suppress_main_lobe_highlights,
 )
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth, peak_row
+from clbeam.io.conventions import epoch_seconds
+from clbeam.io.peaks import REFINE_COLUMNS
 from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
@@ -110,8 +113,11 @@ class PingContext:
 
     @property
     def navigation(self) -> dict:
-        """``latitude``, ``longitude``, ``heading`` (degree) for the ship columns of a row."""
-        return {"latitude": self.latitude_deg, "longitude": self.longitude_deg, "heading": self.heading_deg}
+        """``latitude``, ``longitude``, ``heading`` (degree), ``time_s`` (s since 1970-01-01 UTC) and
+        ``draft_m`` (m) for the ping's columns of a row (:func:`clbeam.imaging.postprocess.peak_row`)."""
+        return {"latitude": self.latitude_deg, "longitude": self.longitude_deg, "heading": self.heading_deg,
+                "time_s": epoch_seconds(self.time), "draft_m": self.draft_m}
+
 
 
 def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray | None, grid: PolarGrid, *,
@@ -144,12 +150,9 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         with the ping's data): rows at the refined points, one per echo, the grid
         cell's range, angle and smoothed CF in ``cell_range_m``, ``cell_angle_deg``,
         ``cell_cf`` and the grid peaks merged in ``cell_peaks`` (not with ``mlh``).
-    min_snr_db : float or None
-        Keep only peaks this far above the ping's noise floor (dB,
-        :mod:`clbeam.imaging.detection`); ``None``: every peak above the CF threshold.
-    min_contrast_db : float or None
-        Keep only peaks this far above the mean of the clutter around them (dB,
-        :mod:`clbeam.imaging.detection`, where the clutter is reverberation); ``None``: no clutter test.
+    min_snr_db, min_contrast_db : float or None
+        Keep only peaks this far above the ping's noise floor, and above the mean of the clutter around
+        them where it is reverberation (dB, :mod:`clbeam.imaging.detection`); ``None``: no such test.
     **mlh_options
         With ``mlh``: overrides of :func:`~clbeam.imaging.mlh.suppress_main_lobe_highlights`.
 
@@ -245,7 +248,18 @@ def image_file_context(ds, i: int) -> PingContext:
                        band_hz=SBP29_BAND_HZ if band is None else tuple(float(b) for b in np.ravel(band)),
                        array_width_m=float(ds.attrs.get("array_width_m", SBP29_ARRAY_WIDTH_M)),
                        sound_speed_m_s=_value(ds, "sound_speed", i, SOUND_SPEED_M_S),
-                       n_channels=_channels(_value(ds, "n_channels", i)))
+                       n_channels=_channels(_value(ds, "n_channels", i)), time=_time(ds, i),
+                       draft_m=_value(ds, "draft", i))
+
+
+def _time(ds, i: int):
+    """Ping ``i``'s ``ping_time`` as ``numpy.datetime64`` (``None`` where the file has none)."""
+    if "ping_time" not in ds.variables:
+        return None
+    t = np.asarray(ds["ping_time"].values[i])
+    if np.issubdtype(t.dtype, np.datetime64):
+        return None if np.isnat(t) else t
+    return None if not np.isfinite(t) else np.datetime64(0, "ns") + np.timedelta64(int(round(float(t) * 1e9)), "ns")
 
 
 def _channels(value) -> int | None:
@@ -254,7 +268,7 @@ def _channels(value) -> int | None:
 
 def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = False,
                       min_snr_db: float | None = DEFAULT_MIN_SNR_DB,
-                      min_contrast_db: float | None = DEFAULT_MIN_CONTRAST_DB) -> list:
+                      min_contrast_db: float | None = DEFAULT_MIN_CONTRAST_DB, refiner=None) -> list:
     """Peak rows of every ping of an image dataset (:func:`peak_rows` on its ``cf``, Hann smoothed).
 
     Parameters
@@ -267,6 +281,10 @@ def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = Fals
         One detection per main-lobe arc.
     min_snr_db, min_contrast_db : float or None
         As :func:`peak_rows`.
+    refiner : callable, optional
+        ``refiner(ping_index, cf_smooth, intensity) -> refine`` (:class:`PingFileRefiner`): the peaks moved
+        to their echoes as ``clbeam image`` moves them; without it the rows are the grid cells' (coarser:
+        a node can sit half a range step off its echo, and its intensity some dB below the echo's).
     """
     grid = PolarGrid(ds["range"].values, ds["angle"].values)
     if mlh and "source_y" not in ds.variables:
@@ -275,6 +293,39 @@ def peaks_from_images(ds, threshold: float = PEAK_THRESHOLD, *, mlh: bool = Fals
     for i in range(ds.sizes["ping"]):
         cf_s = hann_smooth(ds["cf"].isel(ping=i).values)
         inten = ds["intensity"].isel(ping=i).values if "intensity" in ds.variables else None
-        rows.extend(peak_rows(image_file_context(ds, i), cf_s, inten, grid, threshold=threshold, mlh=mlh,
+        context = image_file_context(ds, i)
+        refine = None if refiner is None or mlh else refiner(context.index, cf_s, inten)
+        rows.extend(peak_rows(context, cf_s, inten, grid, threshold=threshold, mlh=mlh, refine=refine,
                               min_snr_db=min_snr_db, min_contrast_db=min_contrast_db))
     return rows
+
+
+#: every column a peak-table option adds (refinement's and main-lobe merging's)
+OPTION_COLUMNS = REFINE_COLUMNS + MLH_COLUMNS
+
+
+def option_columns(*, refine: bool, mlh: bool) -> tuple:
+    """The columns the peak-table options add (:data:`clbeam.io.peaks.REFINE_COLUMNS` with refinement,
+    :data:`clbeam.imaging.mlh.MLH_COLUMNS` with main-lobe merging, which refinement gives way to), sorted."""
+    return tuple(sorted(MLH_COLUMNS if mlh else REFINE_COLUMNS if refine else ()))
+
+
+class PingFileRefiner:
+    """The refinement of an image file's peaks from the pings it was imaged from.
+
+    Parameters
+    ----------
+    pings : clbeam.io.pingfile.PingFile
+        The ping file the image file was made from.
+    imager : clbeam.imaging.imager.Imager
+        An imager on the image file's grid with the options it was imaged with
+        (its interpolation, upsampling, apodization, calibration, channels).
+    """
+
+    def __init__(self, pings, imager):
+        self.pings, self.imager = pings, imager
+
+    def __call__(self, ping_index: int, cf_smooth: np.ndarray, intensity: np.ndarray | None):
+        """``refine(peaks)`` of ping ``ping_index`` of the ping file (``None``: nothing to refine with)."""
+        inp, setting = self.imager._prepare(self.pings.ping(int(ping_index)))
+        return self.imager._refiner(inp, setting, cf_smooth, intensity)

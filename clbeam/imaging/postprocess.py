@@ -10,6 +10,7 @@ import numpy as np
 
 from clbeam.constants import PEAK_THRESHOLD
 from clbeam.errors import OptionError, require
+from clbeam.model.geodesy import geodesic_direct
 from clbeam.model.grid import window_cells
 
 #: cells per block of rows at least, and threads at most, of a large image's smoothing
@@ -266,23 +267,52 @@ def _plateau_maxima(img: np.ndarray, top: np.ndarray, tied: np.ndarray) -> tuple
 
 def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float, intensity: float,
              navigation: dict | None = None) -> dict:
-    """One row of the peaks table (docs/peaks.md): position on the grid and in
-    the earth frame (m), smoothed CF, intensity (dB), and the ship's navigation
-    at the ping (``ship_latitude_deg``, ``ship_longitude_deg``, ``ship_heading_deg``:
-    the peak's own geographic position is the survey's job).
+    """One row of the peaks table (docs/peaks.md), the same in every table
+    (:data:`clbeam.io.peaks.PEAK_CSV_COLUMNS`).
 
     Frames (docs/peaks.md): ``range_m`` and ``angle_deg`` are from the grid
     centre (``centre_y_m``, ``centre_z_m``, also in the row); ``y_m`` (starboard)
     and ``z_m`` (down) are in the earth frame from the array reference point,
-    rolled and heaved with the ship (docs/ping-format.md)."""
+    rolled and heaved with the ship (docs/ping-format.md); ``depth_m`` is
+    ``z_m`` plus the ping's draft (m; 0 where not given).
+
+    Parameters
+    ----------
+    ping : int
+        Ping index.
+    range_m, angle_deg : float
+        Position from the grid centre (m, degree from nadir, positive to starboard).
+    centre_yz_m : (float, float)
+        Earth-frame grid centre (m).
+    cf, intensity : float
+        Smoothed CF and intensity ``|S|^2`` (NaN: none) at the peak.
+    navigation : dict, optional
+        The ping's ``latitude``, ``longitude``, ``heading`` (degree), ``time_s``
+        (s since 1970-01-01 UTC) and ``draft_m`` (m) (:attr:`clbeam.imaging.peaks.PingContext.navigation`);
+        a value ``None`` or NaN leaves its column out (an empty cell).
+
+    Returns
+    -------
+    dict
+        The row; with latitude, longitude and heading, the peak's own position
+        ``peak_latitude_deg``, ``peak_longitude_deg`` (degree, WGS84): ``|y_m|``
+        along the azimuth ``heading ± 90`` degrees from the ping's.
+    """
     th = np.deg2rad(angle_deg)
-    row = {"ping": int(ping), "range_m": float(range_m), "angle_deg": float(angle_deg),
-           "y_m": float(centre_yz_m[0] + range_m * np.sin(th)), "z_m": float(centre_yz_m[1] + range_m * np.cos(th)),
+    nav = {k: float(v) for k, v in (navigation or {}).items() if v is not None and np.isfinite(v)}
+    y, z = float(centre_yz_m[0] + range_m * np.sin(th)), float(centre_yz_m[1] + range_m * np.cos(th))
+    row = {"ping": int(ping), "range_m": float(range_m), "angle_deg": float(angle_deg), "y_m": y, "z_m": z,
+           "depth_m": z + nav.get("draft_m", 0.0),
            "cf": float(cf), "intensity_db": float(10 * np.log10(intensity)) if intensity > 0 else float("-inf"),
            "centre_y_m": float(centre_yz_m[0]), "centre_z_m": float(centre_yz_m[1])}
-    for key, value in (navigation or {}).items():
-        if value is not None and np.isfinite(value):
-            row[f"ship_{key}_deg"] = float(value)
+    if "time_s" in nav:
+        row["time_s"] = nav["time_s"]
+    for key, column in (("latitude", "ping_latitude_deg"), ("longitude", "ping_longitude_deg"),
+                        ("heading", "heading_deg")):
+        if key in nav:
+            row[column] = nav[key]
+    if {"latitude", "longitude", "heading"} <= nav.keys():
+        lat, lon = geodesic_direct(nav["latitude"], nav["longitude"],
+                                   nav["heading"] + (90.0 if y >= 0 else -90.0), abs(y))
+        row["peak_latitude_deg"], row["peak_longitude_deg"] = float(lat), float(lon)
     return row
-
-

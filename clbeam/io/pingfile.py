@@ -250,8 +250,9 @@ class PingDataset:
                         self.name)
         missing = [n for n in ("latitude", "longitude") if n not in self.ds.variables]
         if missing:
-            log.warning("%s: no variable %s: the pings have no position (the peaks' ship_latitude_deg and "
-                        "ship_longitude_deg are empty; a survey places them by ping time and --speed)",
+            log.warning("%s: no variable %s: the pings have no position (the peaks' "
+                        "ping_latitude_deg and peak_latitude_deg, ..._longitude_deg are empty; a survey places them by "
+                        "ping time and --speed)",
                         self.name, " or ".join(f"'{n}'" for n in missing))
 
     def _per_ping(self, name: str, default):

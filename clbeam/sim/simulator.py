@@ -425,6 +425,7 @@ class Simulator:
             "source_x": float(sv[0]), "source_y": float(sv[1]), "source_z": float(sv[2]),
             "roll": motion[:, 0], "pitch": motion[:, 1], "heave": motion[:, 2],
             "heading": np.full(n_p, sc.survey.heading_deg), "latitude": nav[:, 0], "longitude": nav[:, 1],
+            "draft": np.full(n_p, float(so.draft_m)),
             "ping_time": start + (self.indices * sc.survey.ping_interval_s * 1e9).astype("timedelta64[ns]"),
             "pulse_f0": so.pulse_f0_hz, "pulse_f1": so.pulse_f1_hz, "pulse_duration": so.pulse_duration_s,
             "channel_valid": np.ones(so.n_elements, dtype=bool),

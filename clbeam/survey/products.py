@@ -26,11 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
-from clbeam.io.peaks import DETECTION_COLUMNS, PEAK_COLUMNS
+from clbeam.imaging.peaks import OPTION_COLUMNS, option_columns
+from clbeam.io.conventions import epoch_seconds
+from clbeam.io.peaks import CENTRE_COLUMNS, DETECTION_COLUMNS, PEAK_COLUMNS, PEAK_CSV_COLUMNS
 from clbeam.io.survey_products import (
     LINE_INTEGERS,
     LINE_KINDS,
-    NAV_COLUMNS,
     OBJECT_COLUMNS,
     PeakTableWriter,
     write_feature_tables,
@@ -52,14 +53,13 @@ from clbeam.survey.plots import plot_persistence, plot_survey_map
 
 log = logging.getLogger(__name__)
 
-_EPOCH = np.datetime64(0, "ns")
-
 #: per-ping variables of the store filled from the ledger records: (record key, fill value, dtype)
 _RECORD_VARIABLES = {
     "centre_y": ("centre_y_m", np.nan, np.float64), "centre_z": ("centre_z_m", np.nan, np.float64),
     "source_y": ("source_y_m", np.nan, np.float64), "source_z": ("source_z_m", np.nan, np.float64),
     "sound_speed": ("sound_speed_m_s", np.nan, np.float64), "n_channels": ("n_channels_used", np.nan, np.float64),
     "file_index": ("file_index", -1, np.int32), "file_ping": ("file_ping", -1, np.int32),
+    "draft": ("draft_m", np.nan, np.float64),
 }
 
 
@@ -179,7 +179,7 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     row_labels["object"][det.row] = det.labels
     row_labels["line"][det.row] = lines.labels
     files = product_paths(output)
-    _write_peaks(output, names, files, options, nav, row_labels)
+    _write_peaks(output, names, files, options, nav, row_labels, first.per_ping["draft"])
     _write_features(output, files, det, lines, nav)
     n_imaged = int(first.per_ping["imaged"].sum())
     update_store(output, {"latitude": nav.lat, "longitude": nav.lon, "heading": nav.heading, "time": nav.time_s,
@@ -288,7 +288,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
         nav.lat[g], nav.lon[g] = _nan(rec["latitude_deg"]), _nan(rec["longitude_deg"])
         nav.heading_file[g] = _nan(rec["heading_deg"])
         if rec["time"] is not None:
-            nav.time_s[g] = (np.datetime64(rec["time"], "ns") - _EPOCH) / np.timedelta64(1, "s")
+            nav.time_s[g] = epoch_seconds(np.datetime64(rec["time"], "ns"))
         if not sonar and rec.get("band_hz") is not None:
             # as an image file: the sonar of the first ping written (the lowest survey ping)
             sonar = {"pulse_band_hz": [float(b) for b in rec["band_hz"]],
@@ -313,26 +313,38 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
     return _FirstPass(nav, per_ping, dets, row, sonar, seabed)
 
 
-def peak_csv_columns(nav: SurveyNavigation) -> list:
-    """Columns of the peaks CSV: :data:`clbeam.io.peaks.PEAK_COLUMNS`, the detection test's, the input
-    file and ping time, the navigated or the along-track columns (both when
-    some pings have navigation and some not), ``object`` and ``line``."""
-    columns = list(PEAK_COLUMNS) + list(DETECTION_COLUMNS) + ["file_index", "file_ping", "time_s"]
+def peak_csv_columns(nav: SurveyNavigation, imaging=None) -> list:
+    """Columns of the peaks CSV: the table every peaks command writes (:data:`clbeam.io.peaks.PEAK_CSV_COLUMNS`,
+    then the columns of refinement or main-lobe merging where the imaging options (``imaging``, an
+    :class:`~clbeam.imaging.imager.ImagingOptions`) have them), then the survey's own: the input file and
+    ping, the UTM position (some pings navigated) and the along-track distance (some not), ``object`` and
+    ``line``."""
+    columns = list(PEAK_CSV_COLUMNS)
+    if imaging is not None:
+        columns += option_columns(refine=imaging.refine_peaks and not imaging.mlh, mlh=imaging.mlh)
+    columns += list(SURVEY_PEAK_COLUMNS)
     if nav.has_nav.any():
-        columns += list(NAV_COLUMNS)
+        columns += ["easting_m", "northing_m"]
     if (~nav.has_nav).any():
         columns.append("along_track_m")
     columns += ["object", "line"]
     return columns
 
 
+#: the option columns that count (grid peaks merged into a refined row, peaks merged into a detection)
+INTEGER_OPTION_COLUMNS = ("cell_peaks", "n_merged")
+#: the survey's columns of the peaks table after the common ones
+SURVEY_PEAK_COLUMNS = ("file_index", "file_ping")
+
+
 def _write_peaks(output: Path, names: list, files: dict, options: SurveyOptions, nav: SurveyNavigation,
-                 row_labels: dict) -> None:
-    """Second pass: every peak, georeferenced, to the group ``peaks``, the CSV and the GeoJSON."""
+                 row_labels: dict, draft_m: np.ndarray) -> None:
+    """Second pass: every peak, georeferenced, to the group ``peaks``, the CSV and the GeoJSON (``draft_m``:
+    each survey ping's draft, m, NaN where unknown)."""
     attrs = {"utm_epsg": nav.epsg if nav.epsg is not None else -1, "peak_threshold": options.imaging.threshold,
              "map_threshold": options.association.threshold}
-    writer = PeakTableWriter(output, {k: files[k] for k in ("peaks_csv", "peaks_geojson")}, peak_csv_columns(nav),
-                             bool(nav.has_nav.any()), attrs)
+    writer = PeakTableWriter(output, {k: files[k] for k in ("peaks_csv", "peaks_geojson")},
+                             peak_csv_columns(nav, options.imaging), bool(nav.has_nav.any()), attrs, draft_m=draft_m)
     try:
         row = 0
         for rec in iter_ledger_records(output, names):
@@ -353,7 +365,14 @@ def _peak_columns(rec: dict, nav: SurveyNavigation, labels: dict) -> dict:
     g = rec["ping"]
     cols = {c: np.array([r[c] for r in pk], dtype=np.float64) for c in PEAK_COLUMNS if c != "ping"}
     # ledgers written before the detection test have no such keys: NaN
-    cols.update({c: np.array([r.get(c, np.nan) for r in pk], dtype=np.float64) for c in DETECTION_COLUMNS})
+    # (and before the ledger kept the refinement's and merging's columns: NaN)
+    cols.update({c: np.array([r.get(c, np.nan) for r in pk], dtype=np.float64)
+                 for c in DETECTION_COLUMNS + OPTION_COLUMNS})
+    for c in INTEGER_OPTION_COLUMNS:  # counts, as the other tables write them (NaN: a ledger from before)
+        if np.isfinite(cols[c]).all():
+            cols[c] = cols[c].astype(np.int64)
+    for c in CENTRE_COLUMNS:
+        cols[c] = np.full(k, _nan(rec.get(c)))
     pings = np.full(k, g, dtype=np.int64)
     cols["ping"] = pings
     cols["file_index"] = np.full(k, rec["file_index"], dtype=np.int32)

@@ -34,6 +34,7 @@ import numpy as np
 
 from clbeam.errors import OptionError, require
 from clbeam.imaging.imager import Imager, ImagingOptions, check_grid_fits_memory
+from clbeam.imaging.peaks import OPTION_COLUMNS
 from clbeam.io.images import image_arrays
 from clbeam.io.peaks import DETECTION_COLUMNS, PEAK_COLUMNS
 from clbeam.io.pingfile import PingFile
@@ -155,9 +156,10 @@ def ping_record(img, ping, survey_ping: int, file_index: int) -> dict:
     dict
         JSON-serialisable: navigation (degree), time (ISO 8601, UTC), grid
         centre and source (m, earth frame), sound speed (m/s), pulse band
-        (Hz), array width (m), and the peaks
-        (:data:`clbeam.io.peaks.PEAK_COLUMNS` besides ``ping``, and
-        :data:`clbeam.io.peaks.DETECTION_COLUMNS`).
+        (Hz), array width (m), draft (m; ``None``: the ping file gives none),
+        and the peaks (:data:`clbeam.io.peaks.PEAK_COLUMNS` besides ``ping``,
+        :data:`clbeam.io.peaks.DETECTION_COLUMNS`, and the columns of
+        refinement or main-lobe merging, :data:`clbeam.imaging.peaks.OPTION_COLUMNS`, where a row has them).
     """
     keys = [k for k in PEAK_COLUMNS if k != "ping"] + list(DETECTION_COLUMNS)
     ctx = img.context
@@ -168,8 +170,9 @@ def ping_record(img, ping, survey_ping: int, file_index: int) -> dict:
         "time": _iso(ping.time), "centre_y_m": float(ctx.centre_yz_m[0]), "centre_z_m": float(ctx.centre_yz_m[1]),
         "source_y_m": source[0], "source_z_m": source[1], "sound_speed_m_s": float(ctx.sound_speed_m_s),
         "band_hz": [float(b) for b in ctx.band_hz], "array_width_m": float(ctx.array_width_m),
-        "n_channels_used": int(img.n_channels_used),
-        "peaks": [{k: float(r.get(k, math.nan)) for k in keys} for r in img.peaks],
+        "n_channels_used": int(img.n_channels_used), "draft_m": ping.draft_m,
+        "peaks": [{**{k: float(r.get(k, math.nan)) for k in keys},
+                   **{k: float(r[k]) for k in OPTION_COLUMNS if k in r}} for r in img.peaks],
     }
 
 

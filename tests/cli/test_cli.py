@@ -10,7 +10,7 @@ from scenes import dataset
 from scipy.ndimage import correlate1d
 
 from clbeam.cli.main import main
-from clbeam.io.peaks import read_peaks_csv
+from clbeam.io.peaks import PEAK_CSV_COLUMNS, read_peaks_csv
 
 TARGETS = [(40 + 5 * i, 10.0 * i) for i in range(3)]  # (range m, angle deg) of dataset()'s pings
 
@@ -40,7 +40,9 @@ def test_image_writes_the_spec_variables_and_finds_each_scatterer(ping_file, tmp
         assert float(best["angle"].values[0]) == pytest.approx(a, abs=0.1 + 1e-6)
         assert float(ds["cf"].isel(ping=i).sel(range=r, angle=a, method="nearest")) > 0.99
     rows = read_peaks_csv(peaks)
-    assert {"ping", "range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db", "ship_latitude_deg"} <= set(rows[0])
+    assert {"ping", "range_m", "angle_deg", "y_m", "z_m", "cf", "intensity_db", "ping_latitude_deg",
+            "depth_m"} <= set(rows[0])
+    assert peaks.read_text().splitlines()[0].startswith(",".join(PEAK_CSV_COLUMNS) + ",")  # then the cell_* columns
     assert "cf_smooth" not in ds  # derivable from cf: written on request
     ds.close()
 

@@ -185,7 +185,7 @@ def test_arcs_are_centred_on_the_heaved_source():
     context = PingContext.of_ping(ping, grid)
     assert context.source_yz_m == (0.0, -h) and context.centre_yz_m == (0.0, 0.0)
     rows = peak_rows(context, cf, None, grid, mlh=True, **opts)
-    assert [r["n_merged"] for r in rows] == [2] and rows[0]["ship_latitude_deg"] == 34.3 and rows[0]["ping"] == 7
+    assert [r["n_merged"] for r in rows] == [2] and rows[0]["ping_latitude_deg"] == 34.3 and rows[0]["ping"] == 7
     unheaved = PingContext(index=7, centre_yz_m=(0.0, 0.0))
     assert len(peak_rows(unheaved, cf, None, grid, mlh=True, **opts)) == 2
 
@@ -274,12 +274,13 @@ def test_rows_have_the_peak_columns_and_the_arc_measures():
     intensity[ia, ir] = 2.5e4
     dets = suppress_main_lobe_highlights(coherence_peaks(cf, 0.25), cf, GRID)
     (row,) = detection_rows(dets, 3, intensity, (1.0, -0.5), position="peak")
-    assert set(PEAK_COLUMNS) | set(MLH_COLUMNS) | {"centre_y_m", "centre_z_m"} == set(row)
+    assert set(PEAK_COLUMNS) | set(MLH_COLUMNS) | {"centre_y_m", "centre_z_m", "depth_m"} == set(row)
     assert (row["centre_y_m"], row["centre_z_m"]) == (1.0, -0.5)
     assert row["intensity_db"] == pytest.approx(10 * math.log10(2.5e4), abs=1e-9)
     th = math.radians(row["angle_deg"])
     assert row["y_m"] == pytest.approx(1.0 + row["range_m"] * math.sin(th), abs=1e-9)
     assert row["z_m"] == pytest.approx(-0.5 + row["range_m"] * math.cos(th), abs=1e-9)
+    assert row["depth_m"] == row["z_m"]  # no draft given: the array reference point at the surface
     assert row["n_merged"] == len(coherence_peaks(cf, 0.25)) and row["arc_extent_deg"] > 1.0
 
 

@@ -222,7 +222,7 @@ def test_a_ping_file_without_roll_or_navigation_gets_one_warning_each(pings, cap
     messages = [r.getMessage() for r in caplog.records]
     assert len(messages) == 2
     assert messages[0] == "bare.nc: no variable 'roll': the pings are imaged without roll correction (roll 0 degrees)"
-    assert "no variable 'latitude' or 'longitude'" in messages[1] and "ship_latitude_deg" in messages[1]
+    assert "no variable 'latitude' or 'longitude'" in messages[1] and "peak_latitude_deg" in messages[1]
 
 
 def test_the_peaks_csv_has_the_same_columns_with_and_without_navigation(pings, tmp_path):
@@ -233,10 +233,10 @@ def test_the_peaks_csv_has_the_same_columns_with_and_without_navigation(pings, t
         path = write_peaks_csv(imager.image(ping).peaks, tmp_path / f"{name}.csv")
         headers.append(path.read_text().splitlines()[0].split(","))
     assert headers[0] == headers[1]
-    assert headers[1][:len(PEAK_CSV_COLUMNS)] == list(PEAK_CSV_COLUMNS) and "ship_latitude_deg" in headers[1]
+    assert headers[1][:len(PEAK_CSV_COLUMNS)] == list(PEAK_CSV_COLUMNS)
     rows = (tmp_path / "bare.csv").read_text().splitlines()[1:]
-    at = headers[1].index("ship_latitude_deg")
-    assert rows and all(r.split(",")[at] == "" for r in rows)
+    at = [headers[1].index(c) for c in ("ping_latitude_deg", "peak_latitude_deg", "peak_longitude_deg")]
+    assert rows and all(r.split(",")[k] == "" for r in rows for k in at)
 
 
 def test_an_image_file_written_before_the_conventions_reads_and_gives_the_same_peaks(images, tmp_path):
@@ -250,5 +250,11 @@ def test_an_image_file_written_before_the_conventions_reads_and_gives_the_same_p
     old.reset_coords(["latitude", "longitude"]).to_netcdf(tmp_path / "old.nc", engine="h5netcdf")
     again = open_images(tmp_path / "old.nc")
     gates = {"min_snr_db": None, "min_contrast_db": None}
-    assert peaks_from_images(again, **gates) == peaks_from_images(new, **gates) != []
+    old_rows, new_rows = peaks_from_images(again, **gates), peaks_from_images(new, **gates)
+    # the old file has no time and no draft: no time_s, and the depth below the surface takes the draft as 0
+    assert [{k: v for k, v in r.items() if k not in ("time_s", "depth_m")} for r in new_rows] == \
+        [{k: v for k, v in r.items() if k != "depth_m"} for r in old_rows] != []
+    assert all("time_s" not in r and r["depth_m"] == r["z_m"] for r in old_rows)
+    drafts = {p.index: p.draft_m for p in (img.context for img in images)}
+    assert all(r["depth_m"] == pytest.approx(r["z_m"] + drafts[r["ping"]], abs=1e-12) for r in new_rows)
     new.close(), again.close()
