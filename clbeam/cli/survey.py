@@ -112,6 +112,8 @@ def summary_lines(res) -> list:
         lines.append(f"lines: {pr.n_pipelines} pipeline(s) among {len(pr.lines.rows)} line(s) scoring "
                      f">= {pr.lines.min_score:g} -> {f['lines_csv'].name}"
                      + (f", {f['lines_geojson'].name}" if pr.lines.geo_paths is not None else ""))
+        if pr.lines.too_few_pings:
+            lines.append(f"lines: none: {pr.lines.too_few_pings}")
     if res.failures:
         by_file = {}
         for fl in res.failures:
@@ -147,10 +149,13 @@ def run(args) -> int:
 
 
 def _truth_lines(products, paths) -> list:
-    """The ``--truth`` report, or why there is none."""
+    """The ``--truth`` report, or why there is none (or why it finds no line)."""
     from clbeam.evaluation.line_truth import score_survey, truth_summary
 
     scored = score_survey(products, paths)
     if scored is None:
         return ["truth: the inputs hold no line targets' truth (truth_target_* variables of a simulation)"]
-    return truth_summary(*scored)
+    report = truth_summary(*scored)
+    if products.lines.too_few_pings:  # the truth's rows say "line -1", NaN errors: say why first
+        report.insert(0, f"truth: no line to score the targets on: {products.lines.too_few_pings}")
+    return report

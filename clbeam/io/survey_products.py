@@ -78,7 +78,7 @@ OBJECT_COLUMNS = ("object", "n_pings", "n_detections", "first_ping", "last_ping"
                   "mean_y_m", "mean_z_m")
 """Columns of every object row (the first five are integers)."""
 LINE_COLUMNS = ("line", "kind", "n_pings", "first_ping", "last_ping", "length_m", "heading_deg", "mean_cf", "score",
-                "burial_m", "burial_std_m", "mean_y_m", "mean_z_m", "detected_fraction", "burial_error_m",
+                "burial_m", "burial_std_m", "mean_y_m", "mean_z_m", "detected_fraction", "burial_se_m",
                 "burial_resolved", "specular")
 """Columns of every line row (``kind`` a string; ``line``, ``n_pings``, the pings and ``burial_resolved`` integers)."""
 LINE_INTEGERS = ("line", "n_pings", "first_ping", "last_ping", "burial_resolved", "specular")
@@ -341,7 +341,7 @@ FEATURE_LONG_NAMES = {
     "mean_cf": "mean smoothed coherence factor of its detections", "max_cf": "largest smoothed coherence factor",
     "mean_y_m": "mean cross-track offset, positive to starboard", "mean_z_m": "mean depth below the array reference point",
     "score": "line score, -log10 of its expected number by chance", "burial_m": "burial below the seabed",
-    "burial_std_m": "spread of the burials along the line", "burial_error_m": "standard error of the burial",
+    "burial_std_m": "spread of the burials along the line", "burial_se_m": "standard error of the burial",
     "burial_resolved": "burial resolved from the seabed (1) or not (0)", "specular": "specular line (1) or diffuse (0)",
     "detected_fraction": "fraction of the line's pings with a detection",
 }

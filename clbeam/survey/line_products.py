@@ -78,6 +78,9 @@ class SurveyLines:
         Tracks found before the score threshold.
     min_score : float
         That threshold.
+    too_few_pings : str or None
+        Why no line could be found (the survey imaged fewer pings than a
+        line needs to be seeded), in words; ``None`` otherwise.
     """
 
     rows: list
@@ -87,6 +90,7 @@ class SurveyLines:
     geo_paths: list | None = None
     min_score: float = math.nan
     ping_paths: list = field(default_factory=list)
+    too_few_pings: str | None = None
 
 
 def smooth_seabed(seabed: np.ndarray, imaged: np.ndarray, half_window: int = 4) -> np.ndarray:
@@ -152,8 +156,14 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     """
     n = det.ping.size
     pings = np.flatnonzero(imaged)
-    if n == 0 or pings.size < 2:
-        return SurveyLines([], [], np.full(n, -1, dtype=np.int64), 0, [] if nav.all_nav else None, options.min_score)
+    few = None
+    if pings.size < options.seed_hits:
+        few = (f"the survey imaged {pings.size} ping(s), fewer than the {options.seed_hits} with detections a "
+               "line needs to be seeded: no line can be found (clbeam docs lines)")
+        log.warning("%s", few)
+    if n == 0 or pings.size < max(2, options.seed_hits):
+        return SurveyLines([], [], np.full(n, -1, dtype=np.int64), 0, [] if nav.all_nav else None, options.min_score,
+                           too_few_pings=few)
     sb = smooth_seabed(seabed, imaged)
     order = np.argsort(det.ping, kind="stable")
     s_ping, scaled = track_distance_m(nav, pings, options.nominal_spacing_m)
@@ -274,7 +284,7 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     row = {"kind": line_kind(*(measured if spec is None else (burial, burial_se)), nadir_angle, options),
            "n_pings": int(m.size), "first_ping": int(ext[0]), "last_ping": int(ext[-1]),
            "mean_cf": float(np.mean(frame.cf[m])), "score": float(score),
-           "burial_m": burial, "burial_std_m": spread, "burial_error_m": burial_se, "burial_resolved": int(resolved),
+           "burial_m": burial, "burial_std_m": spread, "burial_se_m": burial_se, "burial_resolved": int(resolved),
            "mean_y_m": float(np.mean(path_y)), "mean_z_m": float(np.nanmean(z_line)) if seabed_known else math.nan,
            "detected_fraction": float(m.size / ext.size), "specular": int(spec is not None)}
     return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
@@ -458,7 +468,7 @@ def line_rows(lines: SurveyLines, nav: SurveyNavigation) -> tuple:
     return [{c: r[c] for c in columns} for r in lines.rows], columns, coords
 
 
-def line_kind(burial_m: float, burial_error_m: float, nadir_angle_deg: float, options: LineOptions) -> str:
+def line_kind(burial_m: float, burial_se_m: float, nadir_angle_deg: float, options: LineOptions) -> str:
     """The kind of a line from its burial and that burial's standard error (m), and its typical angle from nadir
     (degree).
 
@@ -482,7 +492,7 @@ def line_kind(burial_m: float, burial_error_m: float, nadir_angle_deg: float, op
     if not math.isfinite(burial_m):
         return "unknown"
     nadir = nadir_angle_deg <= options.nadir_angle_deg
-    se = 0.0 if math.isnan(burial_error_m) else burial_error_m  # no error: judged by the estimate
+    se = 0.0 if math.isnan(burial_se_m) else burial_se_m  # no error: judged by the estimate
     reach = 0.0 if nadir else 3 * se * min(1.0, se / options.burial_resolution_m)
     if options.min_burial_m - reach <= burial_m <= options.max_burial_m + reach:
         return "pipeline"

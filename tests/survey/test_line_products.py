@@ -46,7 +46,7 @@ def test_pipeline_a_is_one_pipeline_line_at_its_true_place_in_every_product(line
     truth_y = ds["truth_target_y"].values[:, 0]
     truth_burial = ds["truth_target_z"].values[:, 0] - ds["truth_target_seabed_z"].values[:, 0]
     assert abs(float(a["mean_y_m"]) - truth_y.mean()) < 1.0
-    assert abs(float(a["burial_m"]) - truth_burial.mean()) < max(3 * float(a["burial_error_m"]), 0.5)
+    assert abs(float(a["burial_m"]) - truth_burial.mean()) < max(3 * float(a["burial_se_m"]), 0.5)
     assert int(a["n_pings"]) >= 2 / 3 * len(truth_y)
     # the peaks on the line: one per ping, all detections, as many as n_pings
     peaks = open_survey(reference, "peaks").load()

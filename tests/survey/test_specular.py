@@ -245,7 +245,7 @@ def test_a_pipe_at_a_steady_small_heading_neither_test_can_call_gets_its_burial_
     assert 0.7 < dz < 0.9
     expected = 1.0 + (0.5 if smooth else -0.5) * dz
     assert rows[0]["burial_m"] == pytest.approx(expected, abs=0.06)
-    assert 0.9 * dz / np.sqrt(12) <= rows[0]["burial_error_m"] < dz / np.sqrt(12) + 0.1
+    assert 0.9 * dz / np.sqrt(12) <= rows[0]["burial_se_m"] < dz / np.sqrt(12) + 0.1
 
 
 @pytest.mark.parametrize("heading_deg", [0.0, 40.0])
@@ -259,7 +259,7 @@ def test_a_rough_pipe_along_the_track_or_far_across_it_keeps_its_measured_burial
     # 40 burials scattering by centimetres: the error is the seabed's, SEABED_SE_M in quadrature with the
     # scatter's spread / sqrt(n - 1) (closed form, from the line's own spread and count)
     spread, n = rows[0]["burial_std_m"], rows[0]["n_pings"]
-    assert rows[0]["burial_error_m"] == pytest.approx(np.hypot(0.15, spread / np.sqrt(n - 1)), rel=1e-6)
+    assert rows[0]["burial_se_m"] == pytest.approx(np.hypot(0.15, spread / np.sqrt(n - 1)), rel=1e-6)
 
 
 def test_a_seabed_chain_at_a_steady_heading_stays_a_seabed_line():
