@@ -24,8 +24,9 @@ from clbeam.seabed.avo.attributes import (
     fluid_factor,
 )
 from clbeam.seabed.avo.calibration import Calibration
-from clbeam.seabed.avo.inversion import InversionResult, invert_response
-from clbeam.seabed.avo.joint import invert_joint
+from clbeam.seabed.avo.inversion import LOG10_SIGMA2_BOUNDS, LOG10_W2_BOUNDS, InversionResult, invert_response
+from clbeam.seabed.avo.joint import MZ_RESOLVED_WIDTH_PHI, invert_joint
+from clbeam.seabed.avo.sediment import MZ_MAX, MZ_MIN
 from clbeam.seabed.avo.stack import Patch
 
 
@@ -47,8 +48,9 @@ class PatchRecord:
     (nadir coefficient and calibrated response, :mod:`clbeam.seabed.avo.joint`),
     ``response`` or ``none``; ``mz_low_phi``..``mz_high_phi`` the 68 %
     interval of the joint inversion, ``calibration_offset_db`` the offset it
-    fitted, ``unresolved`` the parameters it could not resolve
-    (``;``-separated).
+    fitted, ``unresolved`` the parameters either inversion could not resolve
+    (``;``-separated; :func:`unresolved_parameters`: ``mz`` also wherever the
+    strengths are relative or the fit stopped at a grain-size bound).
     """
 
     ping_start: int
@@ -166,11 +168,60 @@ def _inversion_fields(p: Patch, found, cal: Calibration, frequency_hz: float, op
                     impedance_ratio=j.impedance_ratio, impedance_std=j.impedance_std, roughness_w2_cm4=j.w2_cm4,
                     log10_w2_std=j.log10_w2_std, volume_sigma2=j.sigma2, misfit_db=j.misfit_db,
                     calibration_offset_db=j.calibration_offset_db, nadir_model_reflection=j.nadir_model_reflection,
-                    unresolved=";".join(j.unresolved))
+                    unresolved=";".join(unresolved_parameters(j.mz, j.mz_std, absolute=True, joint=j.unresolved)))
     r: InversionResult = invert_response(p.incidence_deg, p.strength_db, frequency_hz, **options)
     return dict(inversion="response", mz_phi=r.mz, mz_std_phi=r.mz_std, impedance_ratio=r.impedance_ratio,
                 impedance_std=r.impedance_std, roughness_w2_cm4=r.w2_cm4, log10_w2_std=r.log10_w2_std,
-                volume_sigma2=r.sigma2, misfit_db=r.misfit_db)
+                volume_sigma2=r.sigma2, misfit_db=r.misfit_db,
+                unresolved=";".join(unresolved_parameters(r.mz, r.mz_std, absolute=cal.absolute,
+                                                          log10_w2_std=r.log10_w2_std,
+                                                          log10_sigma2_std=r.log10_sigma2_std)))
+
+
+#: a grain size this close to a bound of the inversion (phi) stopped there: the data would go further
+MZ_BOUND_TOLERANCE_PHI = 1e-3
+
+
+def unresolved_parameters(mz_phi: float, mz_std_phi: float, *, absolute: bool, joint: tuple | None = None,
+                          log10_w2_std: float = 0.0, log10_sigma2_std: float = 0.0) -> tuple:
+    """The parameters an inversion did not resolve, in the order ``mz``, ``roughness``, ``volume``.
+
+    ``mz`` is unresolved where the joint inversion says so (its interval,
+    :mod:`clbeam.seabed.avo.joint`), where its standard deviation is above
+    1 phi or unknown, where the fit stopped within
+    :data:`MZ_BOUND_TOLERANCE_PHI` of a bound of the grain sizes (``-1`` or
+    ``9`` phi: the bound, not the data, set it), and wherever the strengths
+    are relative (no calibration: the level that sets the grain size is
+    unknown, so the response's shape alone gives it).  Roughness and volume:
+    the joint inversion's, or a standard deviation (log10) above a quarter of
+    their bounds' span or unknown.
+
+    Parameters
+    ----------
+    mz_phi, mz_std_phi : float
+        The fitted grain size and its standard deviation (phi).
+    absolute : bool
+        The strengths were calibrated.
+    joint : tuple of str, optional
+        The joint inversion's own unresolved parameters.
+    log10_w2_std, log10_sigma2_std : float
+        The response inversion's standard deviations of log10 roughness and
+        volume parameter (0: not fitted).
+
+    Returns
+    -------
+    tuple of str
+    """
+    names = set(joint or ())
+    at_bound = min(abs(mz_phi - MZ_MIN), abs(mz_phi - MZ_MAX)) <= MZ_BOUND_TOLERANCE_PHI
+    if not absolute or at_bound or not mz_std_phi <= MZ_RESOLVED_WIDTH_PHI / 2:
+        names.add("mz")
+    if joint is None:
+        if not log10_w2_std <= (LOG10_W2_BOUNDS[1] - LOG10_W2_BOUNDS[0]) / 4:
+            names.add("roughness")
+        if not log10_sigma2_std <= (LOG10_SIGMA2_BOUNDS[1] - LOG10_SIGMA2_BOUNDS[0]) / 4:
+            names.add("volume")
+    return tuple(n for n in ("mz", "roughness", "volume") if n in names)
 
 
 def write_csv(path, records: list[PatchRecord]) -> Path:
