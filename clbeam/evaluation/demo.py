@@ -10,6 +10,7 @@ table, and scores the detections against the simulated truth.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +20,7 @@ import numpy as np
 from clbeam.constants import MAP_THRESHOLD, PEAK_THRESHOLD
 from clbeam.evaluation.scoring import HIT_HORIZONTAL_M
 from clbeam.imaging.imager import Imager, ImagingOptions
+from clbeam.imaging.peaks import option_columns
 from clbeam.io.figures import plot_cross_track
 from clbeam.io.images import ImageWriter
 from clbeam.io.peaks import write_peaks_csv
@@ -129,7 +131,8 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
     for key in ("compress_s", "image_s", "postprocess_s", "figures_s"):
         t[key] = 0.0
     with PingFile(ping_path) as f, ImageWriter(out / "images.nc", grid, len(f), image_variables(imager.options.outputs),
-                                                 {"scene": scene, "interp": interp}) as writer:
+                                                 {"scene": scene, "interp": interp,
+                                                  "source_file": ping_path.name}) as writer:
         for ping in f:
             say(f"imaging ping {ping.index + 1}/{len(f)}")
             img = imager.image(ping)
@@ -143,9 +146,10 @@ def run_demo(out_dir="clbeam-demo", *, pings: int = 3, scene: str = "line1", int
             others += o
             if ping.index == 0 or ping.index == len(f) - 1:
                 t1 = time.perf_counter()
-                files.append(_figure(out, img, ds, truth, scene))
+                files.append(_figure(out, img, ds, truth, sc, scene))
                 t["figures_s"] += time.perf_counter() - t1
-    files += [out / "images.nc", write_peaks_csv(rows, out / "peaks.csv")]
+    columns = option_columns(refine=imager.options.refine_peaks, mlh=imager.options.mlh)
+    files += [out / "images.nc", write_peaks_csv(rows, out / "peaks.csv", columns)]
     return DemoResult(scores, others, files, t)
 
 
@@ -156,11 +160,22 @@ def truth_yz(ds, ping: int) -> np.ndarray:
     return np.stack([ds[f"{key}_y"].values[ping], ds[f"{key}_z"].values[ping]], axis=1)
 
 
-def _figure(out: Path, img, ds, truth_yz: np.ndarray, scene: str) -> Path:
-    """The paper's Fig. 4-style figure of one ping, with the seabed and the targets."""
+def seabed_profile(scene, ds, ping: int):
+    """The scene's seabed across ``ping``: ``z(y)`` (m, earth frame, of the cross-track offset ``y``, m), the
+    simulation's nadir seabed depth ``truth_seabed_z`` sloping across the track as the scene's seabed does
+    (``slope_across_deg``); ``None`` where the simulation has no seabed."""
+    if scene.seabed is None or "truth_seabed_z" not in ds.variables:
+        return None
+    z0 = float(ds["truth_seabed_z"].values[ping])
+    slope = math.tan(math.radians(scene.seabed.slope_across_deg))
+    return lambda y: z0 + slope * np.asarray(y, dtype=np.float64)
+
+
+def _figure(out: Path, img, ds, truth_yz: np.ndarray, sc, scene: str) -> Path:
+    """The paper's Fig. 4-style figure of one ping, with the seabed as the scene has it and the targets."""
     png = out / f"ping{img.ping:03d}.png"
-    seabed = float(ds["truth_seabed_z"].values[img.ping]) if "truth_seabed_z" in ds.variables else None
-    plot_cross_track(img, png, seabed_z_m=seabed, targets_yz_m=truth_yz, title=f"{scene}, ping {img.ping}")
+    plot_cross_track(img, png, seabed_z_m=seabed_profile(sc, ds, img.ping), targets_yz_m=truth_yz,
+                     title=f"{scene}, ping {img.ping}")
     return png
 
 

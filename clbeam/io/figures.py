@@ -58,7 +58,7 @@ def image_extent(grid: PolarGrid, centre_yz_m) -> tuple[float, float, float, flo
     return float(y.min()), float(y.max()), float(min(z.min(), centre_yz_m[1])), float(z.max())
 
 
-def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m=None, title: str = "",
+def plot_cross_track(img, path, *, seabed_z_m=None, targets_yz_m=None, title: str = "",
                      zoom: tuple | None = None, dynamic_range_db: float = 45.0, pixel_m: float | None = None):
     """Three panels like Holland et al. Fig. 4: intensity (dB), coherence
     factor and coherence peaks, with the seabed line and known targets.
@@ -69,8 +69,10 @@ def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m
         From :meth:`clbeam.imaging.imager.Imager.image` (intensity and CF).
     path : path-like
         PNG to write.
-    seabed_z_m : float, optional
-        Seabed depth below the transducers (m), drawn dotted.
+    seabed_z_m : float or callable, optional
+        Seabed depth below the transducers (m), drawn dotted: one depth (a
+        flat seabed), or ``z(y)`` of the cross-track offset ``y`` (m, NumPy
+        arrays in and out): a sloping seabed, drawn as the scene has it.
     targets_yz_m : array-like, optional
         ``(k, 2)`` known target positions (m), drawn as open circles.
     zoom : (y0, y1, z0, z1), optional
@@ -80,15 +82,16 @@ def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m
     plt = pyplot()
     grid, c = img.grid, img.centre_yz_m
     y0, y1, z0, z1 = image_extent(grid, c)
+    seabed = seabed_line(seabed_z_m, y0, y1)
     if zoom is None:
-        zoom = (y0, y1, (seabed_z_m - 40) if seabed_z_m else z0, (seabed_z_m + 40) if seabed_z_m else z1)
+        zoom = (y0, y1, seabed[1].min() - 40, seabed[1].max() + 40) if seabed is not None else (y0, y1, z0, z1)
     fig, axes = plt.subplots(3, 1, figsize=(11, 11), dpi=110, constrained_layout=True)
     _intensity_panel(fig, axes[0], img, (y0, y1, z0, z1), zoom, dynamic_range_db, pixel_m, title)
     _cf_panel(fig, axes[1], img, zoom)
     _peaks_panel(fig, axes[2], img.peaks, zoom)
     for k, ax in enumerate(axes):
-        if seabed_z_m is not None:
-            ax.axhline(seabed_z_m, color="#8b5a2b", ls=":", lw=1.2, label="seabed" if k == 2 else None)
+        if seabed is not None:
+            ax.plot(*seabed, color="#8b5a2b", ls=":", lw=1.2, label="seabed" if k == 2 else None)
         if targets_yz_m is not None and len(targets_yz_m):
             t = np.asarray(targets_yz_m)
             ax.scatter(t[:, 0], t[:, 1], s=90, facecolors="none", edgecolors="cyan", lw=1.3, zorder=4,
@@ -102,6 +105,16 @@ def plot_cross_track(img, path, *, seabed_z_m: float | None = None, targets_yz_m
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def seabed_line(seabed_z_m, y0_m: float, y1_m: float, n: int = 201):
+    """The seabed drawn from ``y0_m`` to ``y1_m`` (m): ``(y, z)`` arrays (m) of ``n`` points of a depth or of
+    ``z(y)`` (:func:`plot_cross_track`'s ``seabed_z_m``); ``None`` without one."""
+    if seabed_z_m is None:
+        return None
+    y = np.linspace(y0_m, y1_m, n)
+    z = seabed_z_m(y) if callable(seabed_z_m) else np.full(n, float(seabed_z_m))
+    return y, np.broadcast_to(np.asarray(z, dtype=np.float64), y.shape)
 
 
 def _intensity_panel(fig, ax, img, extent, zoom, dynamic_range_db: float, pixel_m, title: str) -> None:

@@ -103,3 +103,15 @@ def test_seabed_subbottom_and_multiple_at_their_depths(tmp_path):
     assert abs(z_sb - seabed) <= 0.4 and abs(z_sub - (seabed + 20)) <= 0.6 and abs(z_mul - (2 * seabed + 5)) <= 1.0
     for level in (i_sb, i_sub, i_mul):
         assert level > 100 * quiet  # each stands 20 dB above the water-column background
+
+
+def test_the_demos_image_file_names_its_ping_file_which_avo_finds_beside_it(line1):
+    """``clbeam avo`` looks for the images' ping file by their ``source_file`` attribute."""
+    from clbeam.cli.avo import _pings_beside
+    from clbeam.io.images import open_images
+
+    _, out = line1
+    with open_images(out / "images.nc") as ds:
+        attrs = dict(ds.attrs)
+    assert attrs["source_file"] == "pings.nc"
+    assert _pings_beside(out / "images.nc", attrs) == out / "pings.nc"
