@@ -362,23 +362,29 @@ class Imager:
             min_channels=min_channels_of(self.options.min_channels, data.shape[0]),
             data_token=object())  # one token a ping: the engine uploads its channels once for every stage
         check_grid_reaches_record(inp, self.grid)   # before the setting, which is measured on the record's cells
-        setting = self.setting(ping.element_pos_m[used] - centre, band, ping, data.shape[1], geometry=inp)
+        profile = self._travel_profile(ping, inp, float(centre[2]))
+        # the setting is measured on the array as mounted (no roll, no heave): one setting a line, whichever
+        # ping comes first; each ping's beams still follow its own roll and heave (their band limit)
+        mounted = dataclasses.replace(inp, element_offsets_m=ping.element_pos_m[used] - centre,
+                                      source_offset_m=ping.source_pos_m - centre)
+        setting = self.setting(ping.element_pos_m[used] - centre, band, ping, data.shape[1], geometry=mounted,
+                               profile=(profile, float(centre[2])))
         if setting.upsample > 1:
             inp = dataclasses.replace(inp, data=upsample_analytic(data, setting.upsample),
                                       sample_rate_hz=ping.sample_rate_hz * setting.upsample)
-        return self._with_tables(ping, inp, float(centre[2])), setting
+        return self._with_tables(inp, profile, float(centre[2])), setting
 
     def setting_of(self, ping: Ping) -> Setting:
         """The setting ``ping`` is imaged with (:meth:`setting` of its prepared channels)."""
         return self._prepare(ping)[1]
 
     def setting(self, offsets_m: np.ndarray, band_hz, ping: Ping, n_samples: int,
-                geometry: BeamformInput | None = None) -> Setting:
+                geometry: BeamformInput | None = None, profile: tuple = (None, 0.0)) -> Setting:
         """Mode, upsampling and beam sampling for a ping of this array, band and sampling
         (:func:`clbeam.imaging.engine.errormodel.choose_setting`; with ``--interp auto`` and
         ``geometry``, the ping's input before upsampling, the cheapest candidate whose errors measured on
-        point echoes through that geometry hold the budget, :mod:`clbeam.imaging.budget`; cached, logged
-        once).
+        point echoes through that geometry, along rays through ``profile`` (the profile and the grid centre's
+        depth, m) where one applies, hold the budget, :mod:`clbeam.imaging.budget`; cached, logged once).
 
         Parameters
         ----------
@@ -417,12 +423,12 @@ class Imager:
             setting = choose_setting(predicted, opts.max_error_db, interp=forced,
                                      upsample=opts.upsample or (1 if forced else None), beams=beams)
             if geometry is not None and forced is None and beams == "auto" and opts.upsample is None:
-                setting = self._measured_setting(predicted, geometry, band, ping)
+                setting = self._measured_setting(predicted, geometry, band, ping, profile)
             log.info("imaging setting: %s", setting.describe())
             self._settings[key] = setting
         return setting
 
-    def _measured_setting(self, predicted: list, geometry: BeamformInput, band, ping: Ping) -> Setting:
+    def _measured_setting(self, predicted: list, geometry: BeamformInput, band, ping: Ping, profile: tuple) -> Setting:
         """The cheapest of the settings predicted within the intensity budget whose errors measured on
         echoes of the ping's pulse through ``geometry`` hold the whole budget
         (:func:`clbeam.imaging.budget.choose_measured_setting`)."""
@@ -430,7 +436,7 @@ class Imager:
         budget = Budget(max_error_db=opts.max_error_db, max_cf_error=opts.max_cf_error)
         candidates = [s for s in predicted if s.error_db <= opts.max_error_db]
         replica = ping.pulse.replica(ping.sample_rate_hz) if ping.pulse is not None else None
-        scene = CalibrationScene(geometry, self.grid, band, replica)
+        scene = CalibrationScene(geometry, self.grid, band, replica, profile=profile[0], centre_depth_m=profile[1])
         setting, measured = choose_measured_setting(candidates, scene, self.engine, budget)
         return dataclasses.replace(setting, measured=measured.describe())
 
@@ -441,14 +447,13 @@ class Imager:
             return ping.svp
         return None
 
-    def _with_tables(self, ping: Ping, inp: BeamformInput, centre_z_m: float) -> BeamformInput:
-        """``inp`` with the ray-traced travel-time tables of the grid (cached
-        per profile and grid centre depth) when a profile or a sediment speed
-        applies."""
+    def _travel_profile(self, ping: Ping, inp: BeamformInput, centre_z_m: float) -> SoundSpeedProfile | None:
+        """The profile the travel times follow (the ping's, with the sediment below a given or picked
+        seabed), or ``None`` for straight rays."""
         profile = self.water_profile(ping)
         c_sed = self.options.sediment_speed_m_s
         if (profile is None and c_sed is None) or inp.n_channels == 0:  # no channel: the image is empty anyway
-            return inp
+            return None
         if profile is None:
             profile = SoundSpeedProfile.constant(inp.sound_speed_m_s)
         elif c_sed is None and not profile.is_constant:   # a constant speed holds at any depth
@@ -459,6 +464,13 @@ class Imager:
                 depth = pick_seabed_depth_m(inp, profile=profile, centre_depth_m=centre_z_m)
             # 1 cm steps: a picked seabed that moves with heave reuses its tables
             profile = SoundSpeedProfile.with_sediment(profile, round(depth + centre_z_m, 2), c_sed)
+        return profile
+
+    def _with_tables(self, inp: BeamformInput, profile: SoundSpeedProfile | None, centre_z_m: float) -> BeamformInput:
+        """``inp`` with the ray-traced travel-time tables of the grid through ``profile`` (cached per profile
+        and grid centre depth), or as it is for straight rays."""
+        if profile is None:
+            return inp
         return dataclasses.replace(inp, table_source=functools.partial(self._grid_tables, profile, centre_z_m))
 
     def _grid_tables(self, profile: SoundSpeedProfile, centre_z_m: float, grid: PolarGrid):

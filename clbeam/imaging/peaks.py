@@ -44,6 +44,7 @@ from clbeam.imaging.mlh import (
 from clbeam.imaging.postprocess import coherence_peaks, hann_smooth, peak_row
 from clbeam.io.conventions import epoch_seconds
 from clbeam.io.peaks import REFINE_COLUMNS
+from clbeam.io.survey_store import SURVEY_TIME_VARIABLE
 from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
@@ -253,10 +254,12 @@ def image_file_context(ds, i: int) -> PingContext:
 
 
 def _time(ds, i: int):
-    """Ping ``i``'s ``ping_time`` as ``numpy.datetime64`` (``None`` where the file has none)."""
-    if "ping_time" not in ds.variables:
+    """Ping ``i``'s time as ``numpy.datetime64``: an image file's ``ping_time``, a survey store's
+    ``time`` (``None`` where the file has neither)."""
+    name = next((v for v in ("ping_time", SURVEY_TIME_VARIABLE) if v in ds.variables), None)
+    if name is None:
         return None
-    t = np.asarray(ds["ping_time"].values[i])
+    t = np.asarray(ds[name].values[i])
     if np.issubdtype(t.dtype, np.datetime64):
         return None if np.isnat(t) else t
     return None if not np.isfinite(t) else np.datetime64(0, "ns") + np.timedelta64(int(round(float(t) * 1e9)), "ns")

@@ -88,7 +88,7 @@ def test_exact_sums_of_the_pulse_equal_a_direct_fourier_sum():
         for ia, ir in zip(rng.integers(0, window.shape[0], 6), rng.integers(0, window.shape[1], 6)):
             th = np.deg2rad(window.angles_deg[ia])
             cell = window.ranges_m[ir] * np.array([np.sin(th), np.cos(th)])
-            tau = CalibrationScene._delays(inp, cell) - CalibrationScene._delays(inp, point)
+            tau = CalibrationScene.straight_delays(inp, cell) - CalibrationScene.straight_delays(inp, point)
             p = np.exp(2j * np.pi * np.outer(tau, k * FS / psi.n)) @ psi.spectrum[: psi.n // 2] / psi.n
             s, q = p.sum(), np.sum(np.abs(p) ** 2)
             assert abs(abs(s) ** 2 - exact["intensity"][ia, ir]) <= 1e-5 * exact["intensity"].max()

@@ -34,9 +34,11 @@ MAX_ERROR_DB, MAX_CF_ERROR, DYNAMIC_RANGE_DB = -40.0, 0.02, 40.0
 def refracted(request):
     profile = PROFILES[request.param]
     ping = profile_point_ping(POINTS_YZ, profile, record_s=0.45)
-    default = Imager(GRID, ImagingOptions(outputs=("intensity", "cf"))).image(ping)
-    direct = Imager(GRID, ImagingOptions(outputs=("intensity", "cf"), beams=None, interp="lanczos4",
-                                         refine_peaks=False)).image(ping)
+    imager = Imager(GRID, ImagingOptions(outputs=("intensity", "cf")))
+    default, setting = imager.image(ping), imager.setting_of(ping)
+    # direct imaging with the default's own time interpolation: the difference is the beams' alone
+    direct = Imager(GRID, ImagingOptions(outputs=("intensity", "cf"), beams=None, interp=setting.interp,
+                                         upsample=setting.upsample, refine_peaks=False)).image(ping)
     return request.param, default, direct
 
 

@@ -55,8 +55,10 @@ def node_tables(inp, grid: PolarGrid, rows: np.ndarray, cols: np.ndarray) -> Tra
     return point_tables(values, tables.centre_speed_m_s, tables.centre_depth_m, points)
 
 
-def bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: np.ndarray) -> dict:
-    """The travel-time tables of ``grid`` interpolated to points (NaN where a corner is unreachable)."""
+def bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: np.ndarray,
+                    names=("time_s", "launch_sin", "launch_cos", "wavefront_radius_m")) -> dict:
+    """The travel-time tables of ``grid`` interpolated to points (NaN where a corner is unreachable): the
+    fields ``names`` (the launch direction, when both its parts are asked for, normalised)."""
     def corners(axis, x):
         if axis.size < 2:
             return np.zeros(x.shape, dtype=np.int64), np.zeros(x.shape)
@@ -71,10 +73,11 @@ def bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: n
         return np.where(t == 0, a, np.where(t == 1, b, (1 - t) * a + t * b))
 
     out = {}
-    for name in ("time_s", "launch_sin", "launch_cos", "wavefront_radius_m"):
+    for name in names:
         v = getattr(tables, name)
         out[name] = lerp(lerp(v[ia, ir], v[ia, ir1], tr), lerp(v[ia1, ir], v[ia1, ir1], tr), ta)
-    # the launch direction is a unit vector (the kernels' path formula relies on it): interpolate, then normalise
-    norm = np.hypot(out["launch_sin"], out["launch_cos"])
-    out["launch_sin"], out["launch_cos"] = out["launch_sin"] / norm, out["launch_cos"] / norm
+    if "launch_sin" in out and "launch_cos" in out:
+        # the launch direction is a unit vector (the kernels' path formula relies on it): interpolate, then normalise
+        norm = np.hypot(out["launch_sin"], out["launch_cos"])
+        out["launch_sin"], out["launch_cos"] = out["launch_sin"] / norm, out["launch_cos"] / norm
     return out
