@@ -217,6 +217,41 @@ def _draw_real(cov: np.ndarray, rng: np.random.Generator, shape: tuple) -> np.nd
     return np.einsum("...l,kl->...k", rng.standard_normal(shape + (cov.shape[0],)), root)
 
 
+def _lag_covariances(model: ChannelModel, lag_sets: list) -> tuple:
+    """The noise's and each reverberation's covariance at every distinct lag difference of ``lag_sets`` (s),
+    at once, and for each set the index array ``(n, n)`` into them."""
+    diffs = np.concatenate([(lg[:, None] - lg[None, :]).ravel() for lg in lag_sets])
+    key = np.round(diffs * 1e9).astype(np.int64)          # ns
+    uniq, inverse = np.unique(key, return_inverse=True)
+    phase = np.exp(2j * np.pi * (uniq * 1e-9)[:, None] * model.frequency_hz)
+    cov_noise = model.noise_power * np.einsum("uk,k->u", phase, model.weight)
+    cov_rev = [np.einsum("uk,k->u", phase, density * model.weight ** 2) / model.bin_hz for density, _ in model.reverberation]
+    wheres, start = [], 0
+    for lags in lag_sets:
+        size = lags.size * lags.size
+        wheres.append(inverse[start:start + size].reshape(lags.size, lags.size))
+        start += size
+    return cov_noise, cov_rev, wheres
+
+
+def _offset_tests(a: np.ndarray, b: np.ndarray, model: ChannelModel, tests: Tests, n_grid: int, floor: float,
+                  clutter: float, contrast_applies: bool) -> dict:
+    """The tests' outcomes of one offset's draws from their coherent sums ``a`` and incoherent sums ``b``
+    (``n_grid`` grid cells, then the refined point's seven smoothing taps)."""
+    m = model.n_channels
+    intensity = np.abs(a) ** 2 / (m * model.noise_power)     # re the noise floor M P
+    cf = np.abs(a) ** 2 / (m * b)
+    grid_cf = np.stack([np.einsum("pl,l->p", cf[:, i - 3:i + 4], HANN7) for i in range(3, n_grid - 3)], axis=1)
+    per = a.shape[0]
+    level = intensity[:, n_grid + 3]
+    echo = np.max(intensity, axis=1)
+    return {"cf": np.max(grid_cf, axis=1) > tests.threshold,
+            "snr": np.ones(per, bool) if tests.min_snr_db is None else level >= floor * 10 ** (tests.min_snr_db / 10),
+            "contrast": np.ones(per, bool) if not contrast_applies
+            else echo >= clutter * 10 ** (tests.min_contrast_db / 10),
+            "cf_ref": np.einsum("pl,l->p", cf[:, n_grid:], HANN7)}
+
+
 def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, sound_speed_m_s: float,
                       draws: int = DEFAULT_DRAWS, seed: int = 0, exact: bool = False) -> dict:
     """Probability that the pipe's echo gives a peak that passes the detection test, by Monte Carlo.
@@ -250,7 +285,7 @@ def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, soun
         clutter test applied (``reverberation_limited``).
     """
     rng = np.random.default_rng(seed)
-    m, dr = model.n_channels, tests.range_step_m
+    dr = tests.range_step_m
     half = SEARCH_CELLS + 3
     per = max(draws // GRID_OFFSETS, 1)
     floor = 1.0
@@ -260,32 +295,12 @@ def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, soun
     cell_sets = [np.r_[((j + 0.5) / GRID_OFFSETS - 0.5) * dr + dr * np.arange(-half, half + 1), dr * np.arange(-3, 4)]
                  for j in range(GRID_OFFSETS)]
     lag_sets = [2.0 * cells / sound_speed_m_s for cells in cell_sets]
-    # every covariance at the distinct lag differences at once
-    diffs = np.concatenate([(lg[:, None] - lg[None, :]).ravel() for lg in lag_sets])
-    key = np.round(diffs * 1e9).astype(np.int64)          # ns
-    uniq, inverse = np.unique(key, return_inverse=True)
-    phase = np.exp(2j * np.pi * (uniq * 1e-9)[:, None] * model.frequency_hz)
-    cov_noise = model.noise_power * np.einsum("uk,k->u", phase, model.weight)
-    cov_rev = [np.einsum("uk,k->u", phase, density * model.weight ** 2) / model.bin_hz for density, _ in model.reverberation]
-    start = 0
-    for lags in lag_sets:
-        size = lags.size * lags.size
-        where = inverse[start:start + size].reshape(lags.size, lags.size)
-        start += size
+    cov_noise, cov_rev, wheres = _lag_covariances(model, lag_sets)
+    for lags, where in zip(lag_sets, wheres):
         z = [_draw(cov[where], rng, (per,)) for cov in cov_rev]
         a, b = _channel_sums(model, lags, z, cov_noise[where], rng, per, exact)
-        intensity = np.abs(a) ** 2 / (m * model.noise_power)     # re the noise floor M P
-        cf = np.abs(a) ** 2 / (m * b)
-        n_grid = 2 * half + 1
-        grid_cf = np.stack([np.einsum("pl,l->p", cf[:, i - 3:i + 4], HANN7) for i in range(3, n_grid - 3)], axis=1)
-        results["cf"].append(np.max(grid_cf, axis=1) > tests.threshold)
-        level = intensity[:, n_grid + 3]
-        results["snr"].append(np.ones(per, bool) if tests.min_snr_db is None
-                              else level >= floor * 10 ** (tests.min_snr_db / 10))
-        echo = np.max(intensity, axis=1)
-        results["contrast"].append(np.ones(per, bool) if not contrast_applies
-                                   else echo >= clutter * 10 ** (tests.min_contrast_db / 10))
-        results["cf_ref"].append(np.einsum("pl,l->p", cf[:, n_grid:], HANN7))
+        for k, v in _offset_tests(a, b, model, tests, 2 * half + 1, floor, clutter, contrast_applies).items():
+            results[k].append(v)
     cf_ok, snr_ok, con_ok = (np.concatenate(results[k]) for k in ("cf", "snr", "contrast"))
     return {"pd": float(np.mean(cf_ok & snr_ok & con_ok)), "p_cf": float(np.mean(cf_ok)),
             "p_snr": float(np.mean(cf_ok & snr_ok)), "p_contrast": float(np.mean(cf_ok & con_ok)),

@@ -470,11 +470,9 @@ def read_segy_pings(path: str | os.PathLike, *, mapping: SegyMapping | None = No
     OptionError
         An option out of range.
     """
-    mapping = mapping or SegyMapping()
-    options = options or SegyImportOptions()
-    p = Path(path)
-    name = p.name
-    with open_segy(p) as f:
+    mapping, options = mapping or SegyMapping(), options or SegyImportOptions()
+    name = Path(path).name
+    with open_segy(Path(path)) as f:
         traces, keys, _ = ensemble_layout(f, mapping, name)
         values = header_variables(f, mapping, traces, keys, name)
         dt = sample_interval_s(f, values, name)
