@@ -22,8 +22,10 @@ is taken).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import logging
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -396,3 +398,38 @@ def choose_measured_setting(candidates: list, scene: CalibrationScene, engine, b
     log.warning("no setting holds the budget (%.0f dB, |dCF| %.3f) with room on this geometry; imaging with %s "
                 "(measured %s)", budget.max_error_db, budget.max_cf_error, setting.describe(), measured.describe())
     return setting, measured
+
+
+#: measured choices kept by the process (least recently used out first): every Imager of one geometry, band,
+#: grid and budget (a server's, a survey's workers', a test suite's) measures it once
+MEASURED_CHOICES = 64
+_choices: dict = {}
+_choices_lock = threading.Lock()
+
+
+def measurement_key(inp: BeamformInput, grid: PolarGrid, band_hz, replica, profile: tuple, budget: Budget,
+                    candidates: list, engine) -> tuple:
+    """What a measured choice depends on: the channels' geometry (to 0.1 mm), record, weights, band, pulse,
+    profile, grid, budget, candidates and the engine's kind and precision."""
+    def digest(a) -> str:
+        return hashlib.sha1(np.ascontiguousarray(a).tobytes()).hexdigest() if a is not None else ""
+
+    return (np.round(inp.element_offsets_m, 4).tobytes(), np.round(inp.source_offset_m, 4).tobytes(),
+            inp.sample_rate_hz, round(inp.t0_s, 9), inp.n_samples, inp.sound_speed_m_s, digest(inp.weights),
+            tuple(band_hz), digest(replica), None if profile[0] is None else hash(profile[0]), round(profile[1], 6),
+            digest(grid.ranges_m), digest(grid.angles_deg), budget, tuple(candidates),
+            type(engine).__name__, getattr(engine, "precision", ""), getattr(engine, "device_name", ""))
+
+
+def remembered_choice(key: tuple, choose):
+    """``choose()`` (a measured ``(setting, measured)``), once per ``key`` in this process."""
+    with _choices_lock:
+        if key in _choices:
+            _choices[key] = _choices.pop(key)        # most recently used last
+            return _choices[key]
+    value = choose()
+    with _choices_lock:
+        _choices[key] = value
+        while len(_choices) > MEASURED_CHOICES:
+            _choices.pop(next(iter(_choices)))
+    return value

@@ -36,7 +36,13 @@ from clbeam.imaging.apodization import (
     parse_window,
     receive_weights,
 )
-from clbeam.imaging.budget import Budget, CalibrationScene, choose_measured_setting
+from clbeam.imaging.budget import (
+    Budget,
+    CalibrationScene,
+    choose_measured_setting,
+    measurement_key,
+    remembered_choice,
+)
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
 from clbeam.imaging.engine.beams import BeamSampling
 from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs, min_channels_of, user_windows
@@ -436,8 +442,10 @@ class Imager:
         budget = Budget(max_error_db=opts.max_error_db, max_cf_error=opts.max_cf_error)
         candidates = [s for s in predicted if s.error_db <= opts.max_error_db]
         replica = ping.pulse.replica(ping.sample_rate_hz) if ping.pulse is not None else None
-        scene = CalibrationScene(geometry, self.grid, band, replica, profile=profile[0], centre_depth_m=profile[1])
-        setting, measured = choose_measured_setting(candidates, scene, self.engine, budget)
+        key = measurement_key(geometry, self.grid, band, replica, profile, budget, candidates, self.engine)
+        setting, measured = remembered_choice(key, lambda: choose_measured_setting(
+            candidates, CalibrationScene(geometry, self.grid, band, replica, profile=profile[0],
+                                         centre_depth_m=profile[1]), self.engine, budget))
         return dataclasses.replace(setting, measured=measured.describe())
 
     # -- sound-speed profile ----------------------------------------------
