@@ -122,8 +122,11 @@ def test_the_survey_seabed_lies_on_the_simulated_seabed_once_raised_by_the_offpl
     ds = simulate(load_scene("line1", pings=12, max_range_m=700))
     f = write_ping_file(ds, tmp_path / "line1.nc")
     out = tmp_path / "fine.zarr"
+    # the imaging setting the off-plane model was measured with: over 12 pings the seabed's slope moves by
+    # 1e-3 with a few scatterers' peaks moving a decimetre, as another setting within the budget moves them
     assert survey_main(["survey", str(f), "-o", str(out), "--range-res", "0.2", "--angle-res", "0.1",
-                        "--max-range", "700", "--angles", "-80", "80", "-q"]) == 0
+                        "--max-range", "700", "--angles", "-80", "80", "--interp", "lanczos4", "--beams", "1.5:8",
+                        "-q"]) == 0
     n = ds.sizes["ping"]
     fits = {True: np.full((n, 2), np.nan), False: np.full((n, 2), np.nan)}
     for rec in iter_ledger_records(out, ledger_names(out)):
