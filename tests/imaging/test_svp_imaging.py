@@ -64,6 +64,26 @@ def test_profile_tables_on_opencl_equal_the_float64_reference(mode, weights):
     assert np.linalg.norm(iso.intensity - want.intensity) > 0.1 * np.linalg.norm(want.intensity)
 
 
+
+def test_a_large_grids_kept_cell_tables_follow_the_record_start_and_the_tables(monkeypatch):
+    """The engine keeps a large grid's per-cell tables for the next call: a call with another record start,
+    or other tables of the same grid, images as a fresh engine does (the float64 reference)."""
+    from clbeam.imaging.engine import opencl
+
+    monkeypatch.setattr(opencl, "CACHED_TABLE_CELLS", SMALL.n_cells)   # SMALL counts as large
+    engine = get_engine("opencl")
+    line1, constant = (travel_time_tables(p, SMALL) for p in (holland_line1_profile(), SoundSpeedProfile.constant(1500.0)))
+    first = noise_input(line1)
+    engine.beamform(first, SMALL, interp="cubic", outputs=("intensity",))
+    assert engine._cell_tables[1] is not None
+    later = noise_input(line1)
+    later = BeamformInput(later.data, FS, 0.0007, 1500.0, later.element_offsets_m, later.source_offset_m,
+                          centre_frequency_hz=5500.0, tables=line1)
+    for inp in (later, noise_input(constant), first):
+        want = get_engine("reference").beamform(inp, SMALL, interp="cubic", outputs=("intensity",))
+        got = engine.beamform(inp, SMALL, interp="cubic", outputs=("intensity",))
+        assert np.max(np.abs(got.intensity - want.intensity)) <= F32_REL * want.intensity.max()
+
 def test_unreachable_cells_are_skipped_not_imaged():
     # 1480 m/s at the centre over much faster water: near-horizontal rays turn
     # back up within metres, so cells far out at 85-89 degrees are in the shadow

@@ -186,6 +186,7 @@ class OpenCLEngine(Engine):
         self._kernels: dict = {}
         self._buffers: dict = {}
         self._data_key = None  # (data token, scale, baseband) of the data buffer's contents
+        self._cell_tables = (None, None)  # (key, tables) of the last large grid's per-cell tables
         self._lock = threading.Lock()
         self._fresnel_key = None
         self._fresnel_value = float("inf")
@@ -211,6 +212,7 @@ class OpenCLEngine(Engine):
             self._buffers.clear()
             self.host = HostArrays()
             self._data_key = None
+            self._cell_tables = (None, None)
 
     def _fresnel_range(self, offsets_m: np.ndarray, samples_per_m: float) -> float:
         key = (np.round(offsets_m, 6).tobytes(), round(samples_per_m, 9), self.fresnel)
@@ -349,8 +351,22 @@ class OpenCLEngine(Engine):
                        rows=max(lanes, self.tile_rows(grid.shape[0], grid.shape[1], per_cell) // lanes * lanes),
                        window=cell_windows(inp, grid, mode, range_window_m),
                        angle_tab=np.stack([np.sin(th), np.cos(th)], axis=1).astype(real),
-                       cell_tabs=cell_tables(inp, grid, real) if table else None, head_args=args, range_args=ranges,
+                       cell_tabs=self._cell_tables_of(inp, grid) if table else None, head_args=args, range_args=ranges,
                        signature=signature)
+
+    def _cell_tables_of(self, inp, grid) -> dict:
+        """:func:`cell_tables` of ``inp`` on ``grid``; a grid of :data:`CACHED_TABLE_CELLS` cells or more (not a
+        list of points, one range: a refinement's, made anew each call) keeps them for the next call with the
+        same tables, record start, sample rate and carrier (the pings of a line through one profile: a
+        paper-size grid's take about 1 s to make)."""
+        key = (inp.tables, grid, inp.t0_s, inp.sample_rate_hz, inp.centre_frequency_hz)
+        last, tabs = self._cell_tables
+        if last is not None and all(a is b if k < 2 else a == b for k, (a, b) in enumerate(zip(last, key))):
+            return tabs
+        tabs = cell_tables(inp, grid, self.real)
+        if grid.n_cells >= CACHED_TABLE_CELLS and grid.shape[1] > 1:
+            self._cell_tables = (key, tabs)
+        return tabs
 
     def _upload_data(self, inp, mode, scale: float):
         """The device copy of the channels times ``scale`` (basebanded for the basebanded modes),
@@ -506,6 +522,8 @@ def _padded_table(a: np.ndarray, a0: int, na: int, na_pad: int, name: str) -> np
     return t
 
 
+#: cells of a grid at least whose per-cell tables the engine keeps for its next call
+CACHED_TABLE_CELLS = 1 << 18
 #: names of the per-cell travel-time tables, in the kernel's argument order
 TABLE_NAMES = ("int", "frac", "phase", "sin", "cos", "rho")
 #: integer tap of a cell no ray reaches: far before any record, so never inside

@@ -67,15 +67,20 @@ def bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: n
 
     ia, ta = corners(grid.angles_deg, angles_deg)
     ir, tr = corners(grid.ranges_m, ranges_m)
+    n_r = grid.shape[1]
     ia1 = np.minimum(ia + 1, grid.shape[0] - 1)
-    ir1 = np.minimum(ir + 1, grid.shape[1] - 1)
-    def lerp(a, b, t):  # a corner without weight (an unreachable one on a node) does not poison the point
-        return np.where(t == 0, a, np.where(t == 1, b, (1 - t) * a + t * b))
-
+    ir1 = np.minimum(ir + 1, n_r - 1)
+    # the four corners' flat indices and weights, once for every field
+    corner = [(ia * n_r + ir, (1 - ta) * (1 - tr)), (ia * n_r + ir1, (1 - ta) * tr),
+              (ia1 * n_r + ir, ta * (1 - tr)), (ia1 * n_r + ir1, ta * tr)]
     out = {}
     for name in names:
-        v = getattr(tables, name)
-        out[name] = lerp(lerp(v[ia, ir], v[ia, ir1], tr), lerp(v[ia1, ir], v[ia1, ir1], tr), ta)
+        v = np.asarray(getattr(tables, name)).reshape(-1)
+        value = np.asarray(sum(v[index] * weight for index, weight in corner), dtype=np.float64)
+        bad = ~np.isfinite(value)
+        if bad.any():  # a corner without weight (an unreachable one on a node) does not poison the point
+            value[bad] = sum(np.where(weight[bad] == 0, 0.0, v[index[bad]] * weight[bad]) for index, weight in corner)
+        out[name] = value
     if "launch_sin" in out and "launch_cos" in out:
         # the launch direction is a unit vector (the kernels' path formula relies on it): interpolate, then normalise
         norm = np.hypot(out["launch_sin"], out["launch_cos"])
