@@ -2,26 +2,18 @@
 
     python bench/zoo.py -o OUT [--skip-command]
 
-Five scenes on the paper's grid (0.2 m x 0.1 degree, 0-1100 m, +-80 degrees):
-
-- ``bench``: the bench's simulated Line 4 ping (`clbeam bench`), errors on the window around its 920 m pipe;
-- ``jittered``: 48 elements over 3.0 m with 2 cm of jitter, roll 3 degrees, the source 0.35 m across and
-  0.4 m down, five point echoes at 300-1000 m, on and off nodes;
-- ``jump``: 1500 m/s water over 1560 m/s below 80 m (the profile in the ping), five points whose echoes
-  have exact refracted times (eigenrays);
-- ``points``: the SBP29 array and five noise-free point echoes at 200-1000 m;
-- ``clutter``: the simulator's clutter-only scene (boulders, dense seabed and sub-bottom scatterers, noise),
-  errors on a window of seabed 400-520 m out.
-
-Point echoes are the 80 ms 2-9 kHz LFM placed with exact fractional delays (phase ramps), built here
-independently of the package.  Every setting images the whole grid (so its beams are those of a real
+Five scenes on the paper's grid (0.2 m x 0.1 degree, 0-1100 m, +-80 degrees), described in
+:mod:`clbeam.evaluation.zoo` (the bench's Line 4 ping, a jittered rolled array with a source offset, a jump in
+the sound speed, noise-free points, the clutter scene); their point echoes are built there independently
+of the imaging code.  Every setting images the whole grid (so its beams are those of a real
 image) and is compared, on windows of +-8 degrees and +-2.4 m around each point, with the float64
 reference's 64-tap windowed-sinc interpolation of the same channels and travel times: intensity error
 (error energy over signal energy on cells within 40 dB of each window's maximum), the largest |dCF| on
 those cells, and the CF at the points on nodes.  Times are one ``engine.beamform`` of the bench ping
 (intensity and CF, read back), best of two, in one run.  Unless ``--skip-command``, ``clbeam image``
 (image file written, refined peaks) is timed as a whole on a five-ping file of every scene: (t5 - t1) / 4
-from a one-ping and a five-ping run.
+from a one-ping and a five-ping run, after an untimed one-ping run (:func:`clbeam.evaluation.zoo.zoo_command_times`,
+as ``clbeam bench`` times it).
 
 Writes ``OUT/zoo.md`` (the tables) and ``OUT/zoo.png`` (worst error against time).
 """
@@ -29,104 +21,18 @@ Writes ``OUT/zoo.md`` (the tables) and ``OUT/zoo.png`` (worst error against time
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-FS, C = 40000.0, 1500.0
-BAND, PULSE_S = (2000.0, 9000.0), 0.08
+from clbeam.evaluation.zoo import zoo, zoo_command_times
+
 DYNAMIC_RANGE_DB = 40.0
 #: the settings every scene is measured with besides its own auto choice: (mode, upsampling, beams)
 SETTINGS = (("lanczos4", 1, (1.5, 8)), ("lanczos4", 1, (2.0, 12)), ("lanczos8", 1, (2.0, 16)),
             ("cubic", 2, (2.0, 12)), ("cubic", 2, None), ("lanczos4", 1, None), ("lanczos8", 1, None))
-POINTS_RA = ((300.0, -35.0, True), (480.0, 12.0, False), (620.0, 55.0, True), (800.0, -62.0, False),
-             (1000.0, 70.0, True))
-
-
-def _lfm():
-    from clbeam.model.pulse import Pulse
-
-    return Pulse(f0_hz=BAND[0], f1_hz=BAND[1], duration_s=PULSE_S)
-
-
-def _delayed(replica: np.ndarray, delays_s: np.ndarray, n: int) -> np.ndarray:
-    nfft = 1 << int(np.ceil(np.log2(n + replica.size)))
-    f = np.fft.rfftfreq(nfft, 1 / FS)
-    spec = np.fft.rfft(replica, nfft)[None, :] * np.exp(-2j * np.pi * f[None, :] * delays_s[:, None])
-    return np.fft.irfft(spec, nfft, axis=-1)[:, :n]
-
-
-def _point_ping(targets_yz, *, elements, roll_deg=0.0, source=(0.0, 0.0, 0.0), profile=None):
-    """A raw ping of unit point scatterers at earth-frame ``(y, z)`` from the array reference (m)."""
-    from clbeam.imaging.geometry import to_earth_frame
-    from clbeam.imaging.raytrace import element_travel_times
-    from clbeam.model.ping import Ping
-
-    pulse = _lfm()
-    replica = pulse.replica(FS)
-    el = to_earth_frame(elements, roll_deg=roll_deg)
-    src = to_earth_frame(np.asarray(source, dtype=float), roll_deg=roll_deg)
-    n = int(1.5 * FS)
-    out = np.zeros((len(elements), n))
-    for y, z in targets_yz:
-        if profile is None:
-            r = np.array([0.0, y, z])
-            tau = (np.linalg.norm(r - src) + np.linalg.norm(r - el, axis=1)) / C
-        else:
-            pt = np.array([[y, z]])
-            tau = element_travel_times(profile, src[None, 1:], pt)[0, 0] + element_travel_times(profile, el[:, 1:], pt)[:, 0]
-        out += _delayed(replica, tau, n) / (np.hypot(y, z) ** 2)
-    return Ping(samples=out, kind="raw", sample_rate_hz=FS, t0_s=0.0,
-                sound_speed_m_s=C if profile is None else float(profile.speed(0.0)), element_pos_m=elements,
-                source_pos_m=np.asarray(source, dtype=float), channel_valid=np.ones(len(elements), dtype=bool),
-                roll_deg=roll_deg, pulse=pulse, svp=profile)
-
-
-def _targets(grid, centre):
-    """Earth-frame ``(y, z)`` of :data:`POINTS_RA` about the grid ``centre``, on nodes or off them, and their
-    polar positions."""
-    dr, da = 0.2, 0.1
-    yz, polar = [], []
-    for r, a, node in POINTS_RA:
-        r, a = (r, a) if node else (r + 0.37 * dr, a + 0.41 * da)
-        th = np.deg2rad(a)
-        yz.append((centre[0] + r * np.sin(th), centre[1] + r * np.cos(th)))
-        polar.append((r, a, node))
-    return yz, polar
-
-
-def zoo(grid) -> dict:
-    """Scene name -> (ping, windows as (range, angle, on node) or a window grid)."""
-    from clbeam.evaluation.bench import accuracy_window
-    from clbeam.io.pingfile import pings_from_dataset
-    from clbeam.model.svp import SoundSpeedProfile
-    from clbeam.sim import load_scene, simulate
-
-    scenes = {"bench": (pings_from_dataset(simulate(load_scene("line4", pings=1)), "line4").ping(0), accuracy_window())}
-    rng = np.random.default_rng(7)
-    jit = np.zeros((48, 3))
-    jit[:, 1] = (np.arange(48) - 23.5) * 3.0 / 48
-    jit[:, 1:] += rng.normal(0.0, 0.02, (48, 2))
-    source = (0.0, 0.35, 0.4)
-    yz, polar = _targets(grid, grid.centre(source[1:]))
-    scenes["jittered"] = (_point_ping(yz, elements=jit, roll_deg=3.0, source=source), polar)
-    sbp = np.zeros((64, 3))
-    sbp[:, 1] = (np.arange(64) - 31.5) * 3.528 / 64
-    yz, polar = _targets(grid, grid.centre((0.0, 0.0)))
-    jump = SoundSpeedProfile([0.0, 80.0, 80.0, 2000.0], [1500.0, 1500.0, 1560.0, 1560.0])
-    scenes["jump"] = (_point_ping(yz, elements=sbp, profile=jump), polar)
-    scenes["points"] = (_point_ping(yz, elements=sbp), polar)
-    clutter = pings_from_dataset(simulate(load_scene("clutter", pings=1)), "clutter").ping(0)
-    from clbeam.model.grid import PolarGrid
-
-    scenes["clutter"] = (clutter, PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, min_range_m=400.0,
-                                                    max_range_m=520.0, angles_deg=(40.0, 52.0)))
-    return scenes
 
 
 def _windows(grid, spec):
@@ -209,22 +115,6 @@ def time_settings(ping, grid, engine, settings) -> dict:
     return out
 
 
-def time_command(name, ping, work: Path) -> float:
-    """(t5 - t1) / 4 (s) of ``clbeam image`` (image file, refined peaks) on one and five copies of ``ping``."""
-    from clbeam.io.pingwrite import dataset_from_pings, write_ping_file
-
-    times = {}
-    for n in (1, 5):
-        path = work / f"{name}_{n}.nc"
-        copies = [dataclasses.replace(ping, index=k) for k in range(n)]
-        write_ping_file(dataset_from_pings(copies, samples_dtype=np.float32), path)
-        t = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "clbeam", "image", str(path), "-o", str(work / f"{name}_{n}_img.nc"),
-                        "--peaks", str(work / f"{name}_{n}.csv"), "-q"], check=True)
-        times[n] = time.perf_counter() - t
-    return (times[5] - times[1]) / 4
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("-o", "--output", required=True, help="output folder")
@@ -245,7 +135,7 @@ def main(argv=None) -> int:
     commands = {}
     if not args.skip_command:
         with tempfile.TemporaryDirectory() as tmp:
-            commands = {name: time_command(name, ping, Path(tmp)) for name, (ping, _) in scenes.items()}
+            commands = {name: c["s_per_ping"] for name, c in zoo_command_times(tmp).items()}
     (out / "zoo.md").write_text(_markdown(results, times, commands))
     _plot(results, times, out / "zoo.png")
     print((out / "zoo.md").read_text())

@@ -20,6 +20,8 @@ def add_arguments(p) -> None:
                    metavar=("R0", "R1", "A0", "A1"),
                    help="ranges (m) and angles (degree) where errors are measured against the exact "
                         "reference (default 880 1000 68 80: line4's pipe at 920 m)")
+    p.add_argument("--no-zoo", action="store_true",
+                   help="skip timing clbeam image on the scene zoo (five scenes, 1 and 5 pings each: minutes)")
 
 
 def run(args) -> int:
@@ -49,6 +51,10 @@ def run(args) -> int:
     say(f"clbeam image on 1 and {COMMAND_PINGS} pings, timed as commands")
     with tempfile.TemporaryDirectory(dir=out) as work:
         res.command = time_image_command(dataset, work, pings=(1, COMMAND_PINGS))
+        if not args.no_zoo:
+            from clbeam.evaluation.zoo import zoo_command_times
+
+            res.zoo_commands = zoo_command_times(work, progress=say)
     paths = write_report(res, out)
     if not args.quiet:
         print(markdown_table(res))
