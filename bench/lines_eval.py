@@ -13,6 +13,16 @@ score threshold, and times the line building of a 1,000-ping survey
 A scene ``NAME:SEED`` is simulated with that random seed (seabed, clutter,
 noise); a scene given with several seeds gets a table of its pipelines'
 burial errors over them, against the standard errors their lines report.
+
+``family:SEED`` and ``clutter-family:SEED`` are the random survey families
+(:mod:`clbeam.sim.families`: the survey drawn from SEED, with and without its
+pipelines; SEED also seeds the noise).  ``--family tuning:N`` adds the first N
+tuning draws of both, ``--family validation`` every validation draw (32
+surveys with pipelines, 8 clutter-only): the figures are reported per split,
+tuning (every built-in scene, on which the detector was developed, and the
+family's tuning seeds) apart from validation (nothing was ever chosen on it).
+
+    python bench/lines_eval.py --work DIR --scenes "" --family validation
 """
 
 from __future__ import annotations
@@ -34,6 +44,68 @@ from clbeam.survey.line_options import LineOptions
 from clbeam.survey.products import finalize_survey
 
 SCENES = ("line1", "line4", "cross", "boulders", "clutter", "clutter:1", "clutter:2")
+#: the pings of a family survey (8.23 m apart: 0.32 km)
+FAMILY_PINGS = 40
+#: the targets of the validation summary: on its line over this share of its detectable pings, position RMS and
+#: burial error within these (m), pipelines up to this angle from nadir (degree)
+ON_LINE_TARGET, POSITION_TARGET_M, BURIAL_TARGET_M, NADIR_LIMIT_DEG = 0.9, 0.5, 0.5, 60.0
+
+
+def load_spec(spec: str):
+    """The scene of a spec (``NAME``, ``NAME:SEED``, ``family:SEED``, ``clutter-family:SEED``) and its noise seed."""
+    from clbeam.sim.families import clutter_scene
+    from clbeam.sim.families import survey_scene as family_scene
+
+    name, _, seed = spec.partition(":")
+    if name in ("family", "clutter-family"):
+        draw = int(seed)
+        return (family_scene if name == "family" else clutter_scene)(draw, pings=FAMILY_PINGS), draw
+    return load_scene(name), int(seed or 0)
+
+
+def split_of(spec: str) -> str:
+    """``validation`` for a family's validation draw, else ``tuning``."""
+    from clbeam.sim.families import is_validation_seed
+
+    name, _, seed = spec.partition(":")
+    return "validation" if name in ("family", "clutter-family") and is_validation_seed(int(seed)) else "tuning"
+
+
+def family_specs(choice: str) -> list:
+    """The specs of ``--family``: ``tuning:N`` (the first N tuning draws, with and without pipelines, a clutter
+    survey for every fourth) or ``validation`` (every validation draw)."""
+    from clbeam.sim.families import CLUTTER_VALIDATION_SEEDS, VALIDATION_SEEDS
+
+    if choice == "validation":
+        return [f"family:{s}" for s in VALIDATION_SEEDS] + [f"clutter-family:{s}" for s in CLUTTER_VALIDATION_SEEDS]
+    kind, _, n = choice.partition(":")
+    if kind != "tuning" or not n.isdigit():
+        raise SystemExit(f"lines_eval: --family is tuning:N or validation, got {choice!r}")
+    return [f"family:{s}" for s in range(int(n))] + [f"clutter-family:{s}" for s in range(0, int(n), 4)]
+
+
+def split_summary(split: str, scored: list, clutter_km: float, clutter_false: int) -> list:
+    """Lines of text: a split's pipelines up to :data:`NADIR_LIMIT_DEG` against the targets, and its false
+    pipeline lines per km over its clutter-only surveys; ``scored``: every target row of the split."""
+    rows = [r for r in scored if not r["nadir_deg"] > NADIR_LIMIT_DEG and r["detectable_pings"] > 0]
+    if not rows:
+        return [f"{split}: no pipeline within {NADIR_LIMIT_DEG:g} degrees of nadir was detectable"]
+    on = np.array([r["on_line_fraction"] >= ON_LINE_TARGET for r in rows])
+    pos = np.array([r["position_rms_m"] for r in rows])
+    worst = np.nanmax(pos) if np.isfinite(pos).any() else float("nan")
+    bur = np.array([r["burial_error_m"] for r in rows])
+    se = np.array([r["burial_se_m"] for r in rows])
+    covered = np.abs(bur) <= 2 * se
+    out = [f"{split}: {len(rows)} pipelines within {NADIR_LIMIT_DEG:g} degrees of nadir: one line over >= "
+           f"{100 * ON_LINE_TARGET:.0f} % of the detectable pings {on.sum()} ({100 * on.mean():.0f} %); position RMS "
+           f"<= {POSITION_TARGET_M} m {np.sum(pos <= POSITION_TARGET_M)}, worst {worst:.2f} m; "
+           f"burial within {BURIAL_TARGET_M} m {np.sum(np.abs(bur) <= BURIAL_TARGET_M)} "
+           f"({100 * np.mean(np.abs(bur) <= BURIAL_TARGET_M):.0f} %), within two reported standard errors "
+           f"{covered.sum()} ({100 * covered.mean():.0f} %, nominal 95 %)"]
+    if clutter_km > 0:
+        out.append(f"{split}: {clutter_false} false pipeline line(s) over {clutter_km:.2f} km of clutter-only survey "
+                   f"({clutter_false / clutter_km:.2f} per km)")
+    return out
 
 
 def survey_scene(spec: str, work: Path, lines: LineOptions):
@@ -42,7 +114,8 @@ def survey_scene(spec: str, work: Path, lines: LineOptions):
     tag = f"{name}_s{seed}" if seed else name
     nc = work / f"{tag}.nc"
     if not nc.exists():
-        write_ping_file(simulate(load_scene(name), seed=int(seed or 0)), nc)
+        scene, noise_seed = load_spec(spec)
+        write_ping_file(simulate(scene, seed=noise_seed), nc)
     scan = scan_inputs([nc])
     if not scan.files:
         raise SystemExit(f"lines_eval: {nc} is not a readable ping file; delete it to simulate the scene again")
@@ -56,9 +129,10 @@ def survey_scene(spec: str, work: Path, lines: LineOptions):
     return res, nc, out, opts
 
 
-def scene_rows(name: str, products, nc: Path) -> tuple[list, list]:
-    """Table rows of one scene, and per pipeline ``(target, burial error, the line's own standard error)`` (m)."""
-    scored = score_survey(products, [nc])
+def scene_rows(name: str, products, nc: Path, scored=None) -> tuple[list, list]:
+    """Table rows of one scene, and per pipeline ``(target, burial error, the line's own standard error)`` (m)
+    (``scored``: its :func:`score_survey`, made here when not given)."""
+    scored = score_survey(products, [nc]) if scored is None else scored
     if scored is None:
         return [], []
     rows, summary = scored
@@ -149,17 +223,33 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--work", default="lines_eval", type=Path)
     ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--family", action="append", default=[], metavar="tuning:N|validation",
+                    help="add survey-family draws (repeatable)")
     args = ap.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
-    table = ["| scene | pipeline | detectable pings | on its line | fragments | position RMS (m) | burial error (m) "
-             "| false pipeline lines |", "|---|---|---|---|---|---|---|---|"]
+    header = ["| scene | pipeline | detectable pings | on its line | fragments | position RMS (m) | burial error (m) "
+              "| false pipeline lines |", "|---|---|---|---|---|---|---|---|"]
+    tables = {"tuning": list(header), "validation": list(header)}
     clutter, burials = [], {}
-    for spec in args.scenes.split(","):
+    scored_by_split = {"tuning": [], "validation": []}
+    clutter_by_split = {"tuning": [0.0, 0], "validation": [0.0, 0]}
+    specs = [s for s in args.scenes.split(",") if s] + [s for f in args.family for s in family_specs(f)]
+    for spec in specs:
         t0 = time.perf_counter()
+        split = split_of(spec)
         res, nc, out, opts = survey_scene(spec, args.work, LineOptions())
-        rows, scene_burials = scene_rows(spec, res.products, nc)
-        table += rows
-        burials.setdefault(spec.partition(":")[0], []).append(scene_burials)
+        scored = score_survey(res.products, [nc])
+        rows, scene_burials = scene_rows(spec, res.products, nc, scored)
+        tables[split] += rows
+        if scored is not None:
+            if spec.partition(":")[0] in ("clutter", "clutter-family"):
+                clutter_by_split[split][0] += scored[1]["track_km"]
+                clutter_by_split[split][1] += scored[1]["false_lines"]
+            else:
+                scored_by_split[split] += scored[0]
+        # a family's draws are different surveys, a built-in scene's seeds the same one's noise
+        burials.setdefault(spec if spec.partition(":")[0] in ("family", "clutter-family") else spec.partition(":")[0],
+                           []).append(scene_burials)
         scores = [r["score"] for r in res.products.lines.rows if r["kind"] == "pipeline"]
         print(f"{spec}: surveyed in {time.perf_counter() - t0:.0f} s, {res.products.n_pipelines} pipeline line(s)"
               + (f" scoring {min(scores):.1f}-{max(scores):.1f}" if scores else ""))
@@ -167,7 +257,10 @@ def main(argv=None) -> None:
             clutter.append((out, opts))
     if clutter:
         print("\n" + "\n".join(false_rate(clutter)))
-    print("\n" + "\n".join(table))
+    for split in ("tuning", "validation"):
+        if len(tables[split]) > 2:
+            print(f"\n{split.capitalize()} scenes\n\n" + "\n".join(tables[split]))
+            print("\n" + "\n".join(split_summary(split, scored_by_split[split], *clutter_by_split[split])))
     seeds = burial_over_seeds({k: v for k, v in burials.items() if k != "clutter"})
     if seeds:
         print("\nBurials over noise seeds\n\n" + "\n".join(seeds))

@@ -54,12 +54,23 @@ class LineTruth:
     image_y : numpy.ndarray
         ``(n_pings, n_targets)`` cross-track offset of the image of the
         target's nearest point (m).
+    z : numpy.ndarray or None
+        ``(n_pings, n_targets)`` axis depth below the transducers (m).
     """
 
     names: list
     y: np.ndarray
     burial: np.ndarray
     image_y: np.ndarray = None
+    z: np.ndarray = None
+
+    def nadir_deg(self, target: int) -> float:
+        """The target's median angle from nadir over the pings it crosses (degree; NaN without depths)."""
+        if self.z is None:
+            return math.nan
+        y, z = self.y[:, target], self.z[:, target]
+        on = np.isfinite(y) & np.isfinite(z)
+        return float(np.degrees(np.median(np.arctan2(np.abs(y[on]), z[on])))) if on.any() else math.nan
 
     def distance(self, pings: np.ndarray, y: np.ndarray, target: int) -> np.ndarray:
         """Distance across the track (m) from offsets ``y`` of ``pings`` to the nearer place of ``target``."""
@@ -90,19 +101,21 @@ def line_truth(datasets: list, file_index: np.ndarray, file_ping: np.ndarray) ->
             [f"target {i}" for i in lines]
         image = ds["truth_target_image_y"].values if "truth_target_image_y" in ds.variables else \
             ds["truth_target_y"].values
+        z = np.asarray(ds["truth_target_z"].values)
         per_file.append((names, np.asarray(ds["truth_target_y"].values)[:, lines],
-                         (np.asarray(ds["truth_target_z"].values) - np.asarray(ds["truth_target_seabed_z"].values))
-                         [:, lines], np.asarray(image)[:, lines]))
+                         (z - np.asarray(ds["truth_target_seabed_z"].values))[:, lines], np.asarray(image)[:, lines],
+                         z[:, lines]))
     if not per_file or any(f[0] != per_file[0][0] for f in per_file):
         return None
     names = per_file[0][0]
     y = np.full((file_index.size, len(names)), np.nan)
-    burial, image_y = np.full_like(y, np.nan), np.full_like(y, np.nan)
+    burial, image_y, z = np.full_like(y, np.nan), np.full_like(y, np.nan), np.full_like(y, np.nan)
     ok = (file_index >= 0) & (file_ping >= 0)
     for g in np.flatnonzero(ok):
-        _, fy, fb, fi = per_file[int(file_index[g])]
-        y[g], burial[g], image_y[g] = fy[int(file_ping[g])], fb[int(file_ping[g])], fi[int(file_ping[g])]
-    return LineTruth(names, y, burial, image_y)
+        _, fy, fb, fi, fz = per_file[int(file_index[g])]
+        k = int(file_ping[g])
+        y[g], burial[g], image_y[g], z[g] = fy[k], fb[k], fi[k], fz[k]
+    return LineTruth(names, y, burial, image_y, z)
 
 
 def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, track_km: float,
@@ -126,7 +139,8 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
     (list of dict, dict)
         Per target: ``target``, ``detectable_pings``, ``pings_on_line``,
         ``on_line_fraction``, ``fragments``, ``line`` (-1: none),
-        ``position_rms_m``, ``burial_error_m``; and ``false_lines``,
+        ``position_rms_m``, ``burial_error_m``, ``burial_se_m`` (the line's own standard error),
+        ``nadir_deg`` (the target's median angle from nadir); and ``false_lines``,
         ``false_lines_per_km``, ``track_km``.
     """
     pipes = [k for k, r in enumerate(lines.rows) if r["kind"] == "pipeline"]
@@ -146,13 +160,15 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
                "pings_on_line": int(cover.get(best, 0)),
                "on_line_fraction": cover.get(best, 0) / detectable.size if detectable.size else math.nan,
                "fragments": int(frags), "line": int(lines.rows[best]["line"]) if best >= 0 else -1,
-               "position_rms_m": math.nan, "burial_error_m": math.nan}
+               "position_rms_m": math.nan, "burial_error_m": math.nan, "burial_se_m": math.nan,
+               "nadir_deg": truth.nadir_deg(t)}
         if best >= 0:
             # over every ping of the line's extent where the target crosses the plane, near it or not
             pings, y = lines.ping_paths[best]
             on = np.isfinite(truth.y[pings, t])
             row["position_rms_m"] = float(np.sqrt(np.mean(truth.distance(pings[on], y[on], t) ** 2)))
             row["burial_error_m"] = float(lines.rows[best]["burial_m"] - np.nanmean(truth.burial[pings[on], t]))
+            row["burial_se_m"] = float(lines.rows[best].get("burial_se_m", math.nan))
         rows.append(row)
     false = sum(all(near[k, t].size < 3 for t in range(len(truth.names))) for k in pipes)
     return rows, {"false_lines": int(false), "false_lines_per_km": false / track_km if track_km > 0 else math.nan,
