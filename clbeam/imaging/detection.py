@@ -385,7 +385,7 @@ def annotate_and_gate(rows: list, *, floor: float, n_channels: int | None, eigen
     probability of its smoothed CF over ``n_channels``, NaN when unknown); rows below ``min_snr_db`` left out,
     and rows below ``min_contrast_db`` where the clutter stands :data:`REVERBERATION_MARGIN_DB` or more above
     the noise floor (where it does not, the clutter is the noise, which the CF and the SNR test already
-    judge; ``None``: no test; a NaN value passes)."""
+    judge; ``None``: no test; a NaN value passes).  The kept rows are updated in place and returned."""
     floor_db = 10 * math.log10(floor) if floor > 0 and math.isfinite(floor) else math.nan
     snr = snr_db(rows, floor)
     echo, clutter = (np.full(len(rows), np.nan),) * 2 if contrast is None else contrast
@@ -395,8 +395,11 @@ def annotate_and_gate(rows: list, *, floor: float, n_channels: int | None, eigen
         pfa = false_alarm_probability(np.array([row["cf"] for row, _, _ in kept]), n_channels, eigenvalues)
     else:
         pfa = np.full(len(kept), math.nan)
-    return [{**row, "snr_db": float(s), "contrast_db": float(c), "pfa": float(p)}
-            for (row, s, c), p in zip(kept, np.atleast_1d(pfa))]
+    out = []
+    for (row, s, c), p in zip(kept, np.atleast_1d(pfa).tolist()):
+        row.update(snr_db=float(s), contrast_db=float(c), pfa=p)   # in place: the rows are the caller's own
+        out.append(row)
+    return out
 
 
 def snr_db(rows: list, floor: float) -> list:

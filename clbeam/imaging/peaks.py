@@ -41,7 +41,7 @@ from clbeam.imaging.mlh import (
     detection_rows,
     suppress_main_lobe_highlights,
 )
-from clbeam.imaging.postprocess import coherence_peaks, hann_smooth, peak_row
+from clbeam.imaging.postprocess import coherence_peaks, hann_smooth, peak_rows_at
 from clbeam.io.conventions import epoch_seconds
 from clbeam.io.peaks import REFINE_COLUMNS
 from clbeam.io.survey_store import SURVEY_TIME_VARIABLE
@@ -213,20 +213,20 @@ def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine,
                              cf_smooth, grid)
     if intensity is not None and least_intensity > 0:
         peaks = peaks[~(intensity[peaks[:, 0], peaks[:, 1]] < least_intensity)]
-    return [peak_row(context.index, grid.ranges_m[ir], grid.angles_deg[ia], context.centre_yz_m, cf_smooth[ia, ir],
-                     float(intensity[ia, ir]) if intensity is not None else np.nan, nav)
-            for ia, ir in peaks]
+    ia, ir = peaks[:, 0], peaks[:, 1]
+    return peak_rows_at(context.index, grid.ranges_m[ir], grid.angles_deg[ia], context.centre_yz_m, cf_smooth[ia, ir],
+                        intensity[ia, ir] if intensity is not None else np.full(len(peaks), np.nan), nav)
 
 
 def _refined_rows(context: PingContext, refined, cf_smooth: np.ndarray, grid: PolarGrid) -> list[dict]:
     """Peak rows at refined points, with the grid cell each came from."""
-    rows = []
-    for k, (ia, ir) in enumerate(refined.cell):
-        row = peak_row(context.index, refined.range_m[k], refined.angle_deg[k], context.centre_yz_m,
-                       refined.cf_smooth[k], refined.intensity[k], context.navigation)
-        row.update(cell_range_m=float(grid.ranges_m[ir]), cell_angle_deg=float(grid.angles_deg[ia]),
-                   cell_cf=float(cf_smooth[ia, ir]), cell_peaks=int(refined.n_cells[k]))
-        rows.append(row)
+    rows = peak_rows_at(context.index, refined.range_m, refined.angle_deg, context.centre_yz_m, refined.cf_smooth,
+                        refined.intensity, context.navigation)
+    ia, ir = (refined.cell[:, 0], refined.cell[:, 1]) if len(rows) else (np.zeros(0, int), np.zeros(0, int))
+    cells = zip(grid.ranges_m[ir].tolist(), grid.angles_deg[ia].tolist(), cf_smooth[ia, ir].astype(np.float64).tolist(),
+                np.asarray(refined.n_cells).tolist())
+    for row, (r, a, cf, n) in zip(rows, cells):
+        row.update(cell_range_m=r, cell_angle_deg=a, cell_cf=cf, cell_peaks=int(n))
     return rows
 
 

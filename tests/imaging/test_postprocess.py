@@ -213,3 +213,25 @@ def test_whole_image_search_equals_scikit_image_on_a_sonar_like_image():
     ref = scikit_image_peaks(img, 0.25)
     assert len(ref) > 1000 and len(np.unique(img[ref[:, 0], ref[:, 1]])) < len(ref) / 2  # many equal CFs
     np.testing.assert_array_equal(got, ref)
+
+
+@pytest.mark.parametrize("navigation", [None, {"latitude": 34.29, "longitude": -119.77, "heading": 290.0,
+                                                "time_s": 1.66e9, "draft_m": 5.0},
+                                        {"latitude": float("nan"), "longitude": None, "heading": 12.0}])
+def test_rows_of_many_peaks_at_once_are_each_peaks_row(navigation):
+    """The peak rows built for all peaks at once hold each peak's own row (:func:`peak_row`): the same
+    columns, the same values to float64 rounding, a zero intensity at -inf dB."""
+    from clbeam.imaging.postprocess import peak_row, peak_rows_at
+
+    rng = np.random.default_rng(4)
+    r, a = rng.uniform(0, 1100, 300), rng.uniform(-80, 80, 300)
+    cf, inten = rng.uniform(0, 1, 300), rng.exponential(1.0, 300)
+    inten[:3] = 0.0
+    got = peak_rows_at(7, r, a, (0.4, 1.2), cf, inten.astype(np.float32), navigation)
+    want = [peak_row(7, r[k], a[k], (0.4, 1.2), cf[k], float(np.float32(inten[k])), navigation) for k in range(300)]
+    assert len(got) == len(want)
+    for g, w in zip(got, want):
+        assert g.keys() == w.keys()
+        for key, value in w.items():
+            assert g[key] == pytest.approx(value, rel=1e-12, abs=1e-9), key
+    assert peak_rows_at(7, [], [], (0.0, 0.0), [], [], navigation) == []
