@@ -342,7 +342,12 @@ def exponential_sum_sf(y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     for _ in range(110):  # K'(s) = sum lam / (1 - lam s) increases with s: halve [lo, hi] onto K'(s) = y
         mid = 0.5 * (lo + hi)
         above = np.sum(lam / (1.0 - lam * mid), axis=-1, keepdims=True) > yy
-        lo, hi = np.where(above, lo, mid), np.where(above, mid, hi)
+        new_lo, new_hi = np.where(above, lo, mid), np.where(above, mid, hi)
+        # at float64's resolution every interval stays as it is: later halvings would change nothing
+        settled = np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi)
+        lo, hi = new_lo, new_hi
+        if settled:
+            break
     s = 0.5 * (lo + hi)
     k = -np.sum(np.log1p(-lam * s), axis=-1)
     s, yy = s[..., 0], yy[..., 0]
