@@ -137,13 +137,11 @@ def scene_rows(name: str, products, nc: Path, scored=None) -> tuple[list, list]:
         return [], []
     rows, summary = scored
     out, burials = [], []
-    by_line = {r["line"]: r for r in products.lines.rows}
     for r in rows:
         out.append(f"| {name} | {r['target']} | {r['detectable_pings']} | {r['pings_on_line']} "
                    f"({100 * r['on_line_fraction']:.0f} %) | {r['fragments']} | {r['position_rms_m']:.2f} | "
                    f"{r['burial_error_m']:+.2f} | {summary['false_lines']} |")
-        reported = by_line[r["line"]]["burial_error_m"] if r["line"] in by_line else float("nan")
-        burials.append((r["target"], r["burial_error_m"], reported))
+        burials.append((r["target"], r["burial_error_m"], r["burial_se_m"]))
     if not rows:
         out.append(f"| {name} | (none) | | | | | | {summary['false_lines']} |")
     return out, burials
