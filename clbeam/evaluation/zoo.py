@@ -111,8 +111,6 @@ def zoo(grid) -> dict:
     return scenes
 
 
-
-
 def zoo_command_times(work_dir, pings: tuple = (1, 5), progress=None) -> dict:
     """Scene name -> :func:`clbeam.evaluation.bench.time_image_command` of ``clbeam image --peaks`` on ping
     files of ``pings[0]`` and ``pings[1]`` copies of the scene's ping (s; ``s_per_ping`` the difference over
