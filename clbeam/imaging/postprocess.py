@@ -298,29 +298,13 @@ def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float
         ``peak_latitude_deg``, ``peak_longitude_deg`` (degree, WGS84): ``|y_m|``
         along the azimuth ``heading ± 90`` degrees from the ping's.
     """
-    th = np.deg2rad(angle_deg)
-    nav = {k: float(v) for k, v in (navigation or {}).items() if v is not None and np.isfinite(v)}
-    y, z = float(centre_yz_m[0] + range_m * np.sin(th)), float(centre_yz_m[1] + range_m * np.cos(th))
-    row = {"ping": int(ping), "range_m": float(range_m), "angle_deg": float(angle_deg), "y_m": y, "z_m": z,
-           "depth_m": z + nav.get("draft_m", 0.0),
-           "cf": float(cf), "intensity_db": float(10 * np.log10(intensity)) if intensity > 0 else float("-inf"),
-           "centre_y_m": float(centre_yz_m[0]), "centre_z_m": float(centre_yz_m[1])}
-    if "time_s" in nav:
-        row["time_s"] = nav["time_s"]
-    for key, column in (("latitude", "ping_latitude_deg"), ("longitude", "ping_longitude_deg"),
-                        ("heading", "heading_deg")):
-        if key in nav:
-            row[column] = nav[key]
-    if {"latitude", "longitude", "heading"} <= nav.keys():
-        lat, lon = geodesic_direct(nav["latitude"], nav["longitude"],
-                                   nav["heading"] + (90.0 if y >= 0 else -90.0), abs(y))
-        row["peak_latitude_deg"], row["peak_longitude_deg"] = float(lat), float(lon)
-    return row
+    return peak_rows_at(ping, [range_m], [angle_deg], centre_yz_m, [cf], [intensity], navigation)[0]
 
 
 def peak_rows_at(ping: int, range_m, angle_deg, centre_yz_m, cf, intensity, navigation: dict | None = None) -> list[dict]:
     """:func:`peak_row` of every entry of ``range_m``, ``angle_deg``, ``cf`` and ``intensity`` (arrays of one
-    length; the rest as :func:`peak_row`): the same rows, their positions computed for all entries at once."""
+    length; the rest as :func:`peak_row`), their positions computed for all entries at once (the one builder
+    of the rows: :func:`peak_row` is this for one peak)."""
     r, a = np.asarray(range_m, dtype=np.float64).ravel(), np.asarray(angle_deg, dtype=np.float64).ravel()
     c, inten = np.asarray(cf, dtype=np.float64).ravel(), np.asarray(intensity, dtype=np.float64).ravel()
     nav = {k: float(v) for k, v in (navigation or {}).items() if v is not None and np.isfinite(v)}

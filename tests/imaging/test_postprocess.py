@@ -1,6 +1,8 @@
 """Hann smoothing and coherence peaks against scipy and a brute-force
 regional-maximum search (MATLAB imregionalmax semantics)."""
 
+import math
+
 import numpy as np
 import pytest
 import scipy.signal
@@ -218,20 +220,36 @@ def test_whole_image_search_equals_scikit_image_on_a_sonar_like_image():
 @pytest.mark.parametrize("navigation", [None, {"latitude": 34.29, "longitude": -119.77, "heading": 290.0,
                                                 "time_s": 1.66e9, "draft_m": 5.0},
                                         {"latitude": float("nan"), "longitude": None, "heading": 12.0}])
-def test_rows_of_many_peaks_at_once_are_each_peaks_row(navigation):
-    """The peak rows built for all peaks at once hold each peak's own row (:func:`peak_row`): the same
-    columns, the same values to float64 rounding, a zero intensity at -inf dB."""
+def test_rows_of_many_peaks_at_once_hold_each_peaks_position_level_and_navigation(navigation):
+    """The peak rows built for all peaks at once: each peak's earth-frame position from the grid centre
+    (closed form), depth with the draft, intensity in dB (0 at -inf), the navigation columns, and with a
+    position the peak's own one ``|y|`` across the heading (the WGS84 inverse gives that distance and
+    azimuth back); one peak's row (:func:`peak_row`) is the same."""
     from clbeam.imaging.postprocess import peak_row, peak_rows_at
+    from clbeam.model.geodesy import geodesic_inverse
 
     rng = np.random.default_rng(4)
     r, a = rng.uniform(0, 1100, 300), rng.uniform(-80, 80, 300)
-    cf, inten = rng.uniform(0, 1, 300), rng.exponential(1.0, 300)
+    cf, inten = rng.uniform(0, 1, 300), rng.exponential(1.0, 300).astype(np.float32)
     inten[:3] = 0.0
-    got = peak_rows_at(7, r, a, (0.4, 1.2), cf, inten.astype(np.float32), navigation)
-    want = [peak_row(7, r[k], a[k], (0.4, 1.2), cf[k], float(np.float32(inten[k])), navigation) for k in range(300)]
-    assert len(got) == len(want)
-    for g, w in zip(got, want):
-        assert g.keys() == w.keys()
-        for key, value in w.items():
-            assert g[key] == pytest.approx(value, rel=1e-12, abs=1e-9), key
-    assert peak_rows_at(7, [], [], (0.0, 0.0), [], [], navigation) == []
+    got = peak_rows_at(7, r, a, (0.4, 1.2), cf, inten, navigation)
+    assert len(got) == 300 and peak_rows_at(7, [], [], (0.0, 0.0), [], [], navigation) == []
+    nav = {k: v for k, v in (navigation or {}).items() if v is not None and np.isfinite(v)}
+    y = 0.4 + r * np.sin(np.radians(a))
+    z = 1.2 + r * np.cos(np.radians(a))
+    for k, row in enumerate(got):
+        assert (row["ping"], row["range_m"], row["angle_deg"], row["cf"]) == (7, r[k], a[k], cf[k])
+        assert row["y_m"] == pytest.approx(y[k], abs=1e-9) and row["z_m"] == pytest.approx(z[k], abs=1e-9)
+        assert row["depth_m"] == pytest.approx(z[k] + nav.get("draft_m", 0.0), abs=1e-9)
+        want_db = 10 * math.log10(float(inten[k])) if inten[k] > 0 else -math.inf
+        assert row["intensity_db"] == pytest.approx(want_db, rel=1e-12)
+        assert row.get("heading_deg") == nav.get("heading") and row.get("time_s") == nav.get("time_s")
+        assert ("peak_latitude_deg" in row) == ({"latitude", "longitude", "heading"} <= nav.keys())
+        if "peak_latitude_deg" in row:
+            dist, azimuth = geodesic_inverse(nav["latitude"], nav["longitude"], row["peak_latitude_deg"],
+                                             row["peak_longitude_deg"])
+            assert float(dist) == pytest.approx(abs(y[k]), abs=1e-3)
+            if abs(y[k]) > 1.0:
+                turn = (float(azimuth) - nav["heading"]) % 360
+                assert turn == pytest.approx(90.0 if y[k] >= 0 else 270.0, abs=1e-3)
+    assert peak_row(7, r[5], a[5], (0.4, 1.2), cf[5], float(inten[5]), navigation) == got[5]
