@@ -52,7 +52,9 @@ class Echoes:
     """A set of echoes of one ping, all arrays ``(S,)`` or ``(S, 3)``.
 
     ``pos``: scatterer (or image-source) position, earth frame (m);
-    ``amp``: amplitude (m for scatterers, 1 for image sources);
+    ``amp``: amplitude (m for scatterers, 1 for image sources), real or
+    complex: a complex ``A`` gives the echo ``Re{A x_a(t - τ)}`` (``x_a`` the
+    analytic pulse), the pulse's phase rotated by ``arg A``;
     ``src_leg``: source-to-scatterer distance added to the receive leg (m,
     0 for image sources); ``spread``: divisor of the amplitude besides the
     receive leg (m, 1 for image sources); ``extra_s``: extra delay
@@ -140,8 +142,9 @@ class _Accumulator:
         self.stp = None
 
     def impulses(self, t: np.ndarray, w: np.ndarray) -> None:
-        """Add impulses of weight ``w`` at record sample ``t`` (both ``(S, C)``)."""
-        self._deposit(self.imp, t, w, self.imp_cols, clip=False)
+        """Add impulses of weight ``w`` at record sample ``t`` (both ``(S, C)``;
+        ``w`` complex for phase-rotated echoes: the accumulator turns complex)."""
+        self.imp = self._deposit(self.imp, t, w, self.imp_cols, clip=False)
 
     def steps(self, t: np.ndarray, w: np.ndarray) -> None:
         """Add steps of height ``w`` at record sample ``t`` (both ``(S, C)``)."""
@@ -150,9 +153,18 @@ class _Accumulator:
         # a one-sample box starting at t, summed, is a step at t: the running
         # sum 1/(1 - e^{-jΩ}) = e^{jΩ/2}/(jΩ sinc(Ω/2π)) undoes the box's half
         # sample delay and its sinc, leaving e^{-jΩt}/(jΩ)
-        self._deposit(self.stp, t, w, self.box_cols, clip=True)
+        self.stp = self._deposit(self.stp, t, w, self.box_cols, clip=True)
 
-    def _deposit(self, out, t, w, cols, *, clip: bool) -> None:
+    def add(self, lo: int, y: np.ndarray) -> None:
+        """Add ``y`` ``(C, n)`` from column ``lo`` on (clipped to the window)."""
+        a, b = max(lo, 0), min(lo + y.shape[1], self.length)
+        if b > a:
+            if np.iscomplexobj(y) and not np.iscomplexobj(self.imp):
+                self.imp = self.imp.astype(np.complex128)
+            self.imp[:, a:b] += y[:, a - lo:b - lo]
+
+    def _deposit(self, out, t, w, cols, *, clip: bool) -> np.ndarray:
+        """Deposit into ``out`` and return it (a complex copy when ``w`` is complex and ``out`` real)."""
         k = np.floor(t)
         ph = np.rint((t - k) * FD_PHASES).astype(np.intp)
         k0 = k.astype(np.intp) - (self.taps // 2 - 1) - self.start
@@ -165,7 +177,9 @@ class _Accumulator:
         # started even earlier is the same inside it); one after never matters
         np.clip(k0, 0, self.length - self.taps, out=k0)
         if k0.size == 0:
-            return
+            return out
+        if np.iscomplexobj(w) and not np.iscomplexobj(out):
+            out = out.astype(np.complex128)
         n_ch = out.shape[0]
         lo = int(k0.min())
         hi = int(k0.max()) + self.taps
@@ -174,10 +188,16 @@ class _Accumulator:
         base = base.ravel()
         ph = ph.ravel()
         w = w.ravel()
-        acc = np.zeros(n_ch * span)
-        for j, col in enumerate(cols):
-            acc += np.bincount(base + j, col[ph] * w, minlength=n_ch * span)
-        out[:, lo:hi] += acc.reshape(n_ch, span)
+        parts = (w.real, w.imag) if np.iscomplexobj(w) else (w,)
+        for k, part in enumerate(parts):
+            acc = np.zeros(n_ch * span)
+            for j, col in enumerate(cols):
+                acc += np.bincount(base + j, col[ph] * part, minlength=n_ch * span)
+            if k == 0:
+                out[:, lo:hi] += acc.reshape(n_ch, span)
+            else:
+                out[:, lo:hi] += 1j * acc.reshape(n_ch, span)
+        return out
 
     def total(self) -> np.ndarray:
         """Impulses plus the running sum of the steps (``(C, length)``)."""
@@ -234,13 +254,19 @@ class Renderer:
             if local is None:
                 continue
             y = self._block_filter(local.total(), b_blocks, e.response)
-            lo = local.start - FILTER_PAD - acc.start
-            a, b = max(lo, 0), min(lo + y.shape[1], acc.length)
-            if b > a:
-                acc.imp[:, a:b] += y[:, a - lo:b - lo]
+            acc.add(local.start - FILTER_PAD - acc.start, y)
         total = acc.total()
         nfft = scipy.fft.next_fast_len(total.shape[1] + self.n_pulse, real=True)
-        spec = scipy.fft.rfft(total, nfft, axis=1)
+        if np.iscomplexobj(total):
+            # deposits D_r + j D_i of echoes Re{A x_a(t - τ)}: D_r ⊛ x - D_i ⊛ H{x}, whose
+            # spectrum on f > 0 is (D_r + j D_i) X (the Hilbert transform is -j sgn f)
+            quad = scipy.fft.rfft(total.imag, nfft, axis=1)
+            quad[:, 0] = 0.0
+            if nfft % 2 == 0:
+                quad[:, -1] = 0.0
+            spec = scipy.fft.rfft(total.real, nfft, axis=1) + 1j * quad
+        else:
+            spec = scipy.fft.rfft(total, nfft, axis=1)
         spec *= scipy.fft.rfft(self.replica, nfft)[None, :]
         y = scipy.fft.irfft(spec, nfft, axis=1)
         return y[:, -start:-start + self.n_samples]
@@ -348,6 +374,8 @@ class Renderer:
         """Zero-phase filter ``W(f) H(f) exp(-b_j f)`` applied to each block ``j``
         of ``x`` (``(C, n_blocks · FILTER_BLOCK)``); the blocks' outputs overlap-add
         into ``(C, n_blocks · FILTER_BLOCK + 2 FILTER_PAD)``."""
+        if np.iscomplexobj(x):  # a real, zero-phase filter: each part on its own
+            return self._block_filter(x.real, b_blocks, response) + 1j * self._block_filter(x.imag, b_blocks, response)
         n_ch, n = x.shape
         nb = n // FILTER_BLOCK
         nfft = FILTER_BLOCK + 2 * FILTER_PAD

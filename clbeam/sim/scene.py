@@ -5,7 +5,8 @@ A :class:`Scene` gathers the sonar (:class:`Sonar`), the recording window
 (:class:`Motion`), the water column (:class:`Water`), the seabed
 (:class:`Seabed`, its :class:`Scattering` and :class:`Province` tables),
 the sub-bottom (:class:`SubBottom`), the targets (:class:`PointTarget`,
-:class:`LineTarget`) and the numerical choices (:class:`Model`).  Each
+:class:`LineTarget`), the numerical choices and the physics (:class:`Model`)
+and the discrete-scatterer statistics (:class:`Discrete`).  Each
 validates its values on construction and names the scene key of a bad one
 (:class:`clbeam.errors.OptionError`).  None reads files or synthesises
 anything: the TOML loader (:mod:`clbeam.sim.catalog`) builds them and every
@@ -244,6 +245,11 @@ class Scattering:
         require(0 < self.per_cell <= 50, OptionError, f"scattering.per_cell must be within (0, 50], got {self.per_cell}")
         require(self.depth_spread_m >= 0, OptionError, f"scattering.depth_spread_m must be >= 0 m, got {self.depth_spread_m}")
 
+
+PHYSICS_MODELS = ("specular", "discrete")
+"""Values of ``model.physics``: the smooth-pipe and importance-sampled model, or discrete point scatterers."""
+TX_PATTERNS = ("band", "centre")
+"""Values of ``discrete.tx_pattern``: the transmit column's pattern at every frequency, or at the band centre."""
 
 SPECULAR_MODELS = ("impedance", "forward")
 """Values of ``seabed.specular_model``."""
@@ -508,17 +514,79 @@ class Model:
         wavelength in the band (at 1.05 f1) divided by the largest direction
         cosine of a ray on the pipe inside the beam, so the phase step between
         points never exceeds π/2 on any ray.
+    physics : {"specular", "discrete"}
+        How the pipes and the rough interfaces scatter.  ``"specular"``: a
+        pipe is a smooth cylinder's coherent echo (its ``ka`` response, with
+        ``roughness`` as weights on it) and the interfaces are
+        importance-sampled fields (``per_cell``).  ``"discrete"``: seabed,
+        sub-bottom and pipes are fields of independent point scatterers with
+        Rayleigh amplitudes and uniform phases whose statistics the
+        ``[discrete]`` table sets (:class:`Discrete`, :mod:`clbeam.sim.discrete`).
     """
 
     tx_beam_cut: float = 1.0
     attenuation_cut_db: float = 40.0
     line_spacing_m: float | None = None
+    physics: str = "specular"
 
     def __post_init__(self):
+        require(self.physics in PHYSICS_MODELS, OptionError,
+                f"model.physics must be one of {', '.join(PHYSICS_MODELS)}, got {self.physics!r}")
         require(0 < self.tx_beam_cut <= 3, OptionError, f"model.tx_beam_cut must be within (0, 3], got {self.tx_beam_cut}")
         require(self.attenuation_cut_db > 0, OptionError, f"model.attenuation_cut_db must be > 0, got {self.attenuation_cut_db}")
         require(self.line_spacing_m is None or self.line_spacing_m > 0, OptionError,
                 f"model.line_spacing_m must be > 0 m, got {self.line_spacing_m}")
+
+
+@dataclass(frozen=True)
+class Discrete:
+    """Statistics of the discrete-scatterer physics (``model.physics = "discrete"``, :mod:`clbeam.sim.discrete`).
+
+    Every scatterer has a complex amplitude ``A = s · w`` with ``w`` circular complex Gaussian
+    (``E|w|² = 1``: a Rayleigh magnitude and a uniform phase) and ``s²`` its mean power: for an
+    interface ``σ(θ) / n`` (``σ`` the interface's backscattering cross-section per unit area and
+    solid angle at the grazing angle ``θ``, from its ``scattering`` table; ``n`` the density), so the
+    mean intensity does not depend on the density; for a pipe ``ρ² · 2a · μ_p · Δs`` (``ρ`` its
+    ``reflectivity``, ``a`` its radius, ``μ_p`` the pipe's strength, ``Δs`` the spacing).
+
+    Attributes
+    ----------
+    seabed_density_per_m2, subbottom_density_per_m2 : float
+        Scatterers per m² of the seabed and of the sub-bottom horizon (a Poisson field).
+    seabed_depth_m, subbottom_depth_m : float
+        Half-width of the uniform depth spread about the interface (m): ``±`` this.
+    pipe_spacing_m : float
+        Spacing of the scatterers along a pipe's axis (m).
+    pipe_strength_db : float
+        ``10 log10 μ_p``: backscattering strength of the pipe per unit of its diameter and length
+        (dB re 1 m² per m² per steradian), isotropic.
+    tx_pattern : {"band", "centre"}
+        The transmit column's along-track pattern ``sinc(L f u / c)``: at every frequency of the
+        band (``"band"``, the line aperture's exact far field) or at the band centre only, as one
+        real weight per scatterer (``"centre"``).
+    """
+
+    seabed_density_per_m2: float = 0.06
+    seabed_depth_m: float = 0.05
+    subbottom_density_per_m2: float = 0.06
+    subbottom_depth_m: float = 0.1
+    pipe_spacing_m: float = 0.1
+    pipe_strength_db: float = -10.0
+    tx_pattern: str = "band"
+
+    def __post_init__(self):
+        for key in ("seabed_density_per_m2", "subbottom_density_per_m2"):
+            v = getattr(self, key)
+            require(0 < v <= 10, OptionError, f"discrete.{key} must be within (0, 10] per m², got {v}")
+        for key in ("seabed_depth_m", "subbottom_depth_m"):
+            v = getattr(self, key)
+            require(0 <= v <= 5, OptionError, f"discrete.{key} must be within 0-5 m, got {v}")
+        require(0.005 <= self.pipe_spacing_m <= 2, OptionError,
+                f"discrete.pipe_spacing_m must be within 0.005-2 m, got {self.pipe_spacing_m}")
+        require(-60 <= self.pipe_strength_db <= 20, OptionError,
+                f"discrete.pipe_strength_db must be within -60 to 20 dB, got {self.pipe_strength_db}")
+        require(self.tx_pattern in TX_PATTERNS, OptionError,
+                f"discrete.tx_pattern must be one of {', '.join(TX_PATTERNS)}, got {self.tx_pattern!r}")
 
 
 @dataclass(frozen=True)
@@ -589,6 +657,9 @@ class Scene:
     water : Water or None
         Sound-speed profile; ``None``: isospeed water at ``sound_speed_m_s``
         (straight rays).
+    discrete : Discrete or None
+        Statistics of the discrete-scatterer physics; filled with the defaults when
+        ``model.physics = "discrete"`` and left out, an error otherwise.
     snr_db : float or None
         Noise level: ``20 log10(A_ref / σ)``, ``σ`` the standard deviation of
         the white Gaussian noise per raw sample and ``A_ref`` the raw
@@ -610,6 +681,7 @@ class Scene:
     targets: tuple = ()
     model: Model = field(default_factory=Model)
     water: Water | None = None
+    discrete: Discrete | None = None
 
     def __post_init__(self):
         lo, hi = WATER_SPEED_RANGE_M_S
@@ -622,6 +694,18 @@ class Scene:
                     f"transducers (z = 0), {c0:.10g} m/s: leave sound_speed_m_s out (or set it to that)")
         require(self.subbottom is None or self.seabed is not None, OptionError,
                 "a [subbottom] needs a [seabed]")
+        require(self.discrete is None or self.model.physics == "discrete", OptionError,
+                f"a [discrete] table needs model.physics = \"discrete\" (got {self.model.physics!r})")
+        if self.model.physics == "discrete":
+            if self.discrete is None:
+                object.__setattr__(self, "discrete", Discrete())
+            require(self.seabed is None or not self.seabed.province, OptionError,
+                    "seabed.province is not available with model.physics = \"discrete\" (a [seabed.scattering] "
+                    "law sets its scatterers' strength)")
+            if self.subbottom is not None:
+                require(self.discrete.subbottom_depth_m < self.subbottom.depth_below_seabed_m, OptionError,
+                        f"discrete.subbottom_depth_m ({self.discrete.subbottom_depth_m:g} m) must be less than "
+                        f"subbottom.depth_below_seabed_m ({self.subbottom.depth_below_seabed_m:g} m)")
         names = [t.name for t in self.targets]
         require(len(set(names)) == len(names), OptionError, f"target names must be distinct, got {names}")
         for t in self.targets:
@@ -634,8 +718,9 @@ class Scene:
         """The scene as plain data (the ``scene_json`` attribute of a simulated file)."""
         d = dataclasses.asdict(self)
         del d["targets"]
-        if d["water"] is None:
-            del d["water"]
+        for key in ("water", "discrete"):
+            if d[key] is None:
+                del d[key]
         d["target"] = [dict(kind=target_kind(t), **dataclasses.asdict(t)) for t in self.targets]
         return d
 

@@ -89,6 +89,7 @@ from clbeam.io.pingwrite import write_ping_file
 from clbeam.io.schema import FORMAT_ATTRIBUTE, PING_FORMAT, ping_variable
 from clbeam.model.geodesy import geodesic_direct
 from clbeam.sim.catalog import list_scenes, load_scene, scene_from_mapping
+from clbeam.sim.discrete import DiscreteModel, pipe_power_per_m
 from clbeam.sim.geometry import PingGeometry, ping_geometry, seabed_z
 from clbeam.sim.physics import (
     DB_PER_NEPER,
@@ -199,7 +200,11 @@ class Simulator:
         if sc.seabed is not None and sc.seabed.province:
             self.provinces = Provinces(sc.seabed.province, frequency_hz=self.fc,
                                        sound_speed_water_m_s=self.propagation.c_seabed)
-        self._fields = scatterer_fields(self.propagation, seed=self.seed, x_window=self._x_window)
+        self._discrete = None
+        if sc.model.physics == "discrete":
+            self._discrete = DiscreteModel(self.propagation, seed=self.seed, x_window=self._x_window)
+        self._fields = [] if self._discrete else scatterer_fields(self.propagation, seed=self.seed,
+                                                                  x_window=self._x_window)
         track_m = (max(sc.survey.pings, int(self.indices.max()) + 1) - 1) * sc.survey.step_m
         self._lines = [line_points(self.propagation, t, x_window=self._x_window, track_m=track_m)
                        if isinstance(t, LineTarget) else None for t in sc.targets]
@@ -275,7 +280,9 @@ class Simulator:
         reflection coefficient).  Otherwise the first target's echo at the
         array centre for the first ping: ``a / R²`` for a point, the
         broadside stationary-phase echo ``ρ_p H(f_c) sqrt(λ_c R / 2) / R²`` for
-        a line.  1 when there is neither.
+        a line (discrete physics: the RMS echo ``sqrt(σ_L sqrt(λ_c R / 2)) / R²``
+        of the scatterers on that length, ``σ_L`` the pipe's mean cross-section
+        per metre).  1 when there is neither.
         """
         sc = self.scene
         if sc.seabed is not None:
@@ -288,6 +295,8 @@ class Simulator:
                 return t.amplitude_m / (x * x + y * y + z * z)
             y, z, _ = line_crossing(sc, t, 0.0)
             r = math.hypot(y, z)
+            if self._discrete is not None:  # the RMS echo of the incoherent pipe's Fresnel length
+                return math.sqrt(pipe_power_per_m(sc.discrete, t) * math.sqrt(self.c / self.fc * r / 2)) / r ** 2
             return t.reflectivity * float(t.response(self.fc, self.c)) * math.sqrt(self.c / self.fc * r / 2) / r ** 2
         return 1.0
 
@@ -335,7 +344,9 @@ class Simulator:
         """Every echo set of ping ``g``: targets, specular paths, random fields."""
         prop = self.propagation
         sets = []
-        for t, pts in zip(self.scene.targets, self._lines):
+        if self._discrete is not None:   # targets and interfaces as discrete scatterers
+            sets.extend(self._discrete.echoes(g))
+        for t, pts in zip(self.scene.targets if self._discrete is None else (), self._lines):
             e = point_echo(prop, g, t) if pts is None else line_echo(prop, g, t, pts)
             if e is not None and len(e):
                 sets.append(e)
