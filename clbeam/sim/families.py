@@ -11,7 +11,9 @@ surveys without pipelines (the false-line rate).  The draws are split once and f
   (clutter only), on which nothing is ever chosen: the figures the documentation quotes.
 
 Every draw is a plain :class:`~clbeam.sim.scene.Scene` (its mapping, :func:`survey_mapping`, is what a
-scene's TOML file would hold), so ``clbeam simulate`` and the truth scoring treat it like any other.
+scene's TOML file would hold), so ``clbeam simulate`` and the truth scoring treat it like any other.  A
+draw can be rendered under either physics (``model="specular"``, the default, or ``"discrete"``:
+:mod:`clbeam.sim.discrete`): the same seed is the same survey under both.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import numpy as np
 
 from clbeam.errors import OptionError, require
 from clbeam.sim.catalog import scene_from_mapping
-from clbeam.sim.scene import Scene
+from clbeam.sim.scene import PHYSICS_MODELS, Scene
 
 #: seeds from here on are validation draws; tuning uses the seeds below
 VALIDATION_FIRST_SEED = 1000
@@ -56,7 +58,7 @@ def is_validation_seed(seed: int) -> bool:
     return int(seed) >= VALIDATION_FIRST_SEED
 
 
-def survey_scene(seed: int, *, pings: int = 40, pipelines: bool = True) -> Scene:
+def survey_scene(seed: int, *, pings: int = 40, pipelines: bool = True, model: str = "specular") -> Scene:
     """The survey line drawn from ``seed`` (:func:`survey_mapping`) as a scene.
 
     Parameters
@@ -67,20 +69,29 @@ def survey_scene(seed: int, *, pings: int = 40, pipelines: bool = True) -> Scene
         Pings on the line (8.23 m apart).
     pipelines : bool
         ``False``: the same survey without its pipelines (clutter only).
+    model : {"specular", "discrete"}
+        The physics it is rendered under (``model.physics``): the same draw, seabed, targets and
+        navigation, with the pipes and interfaces as the specular model's or as discrete scatterers
+        (:mod:`clbeam.sim.discrete`, the ``[discrete]`` defaults).  A discrete draw's name ends in
+        ``-discrete``.
     """
-    return scene_from_mapping(survey_mapping(seed, pings=pings, pipelines=pipelines),
-                              name=f"{'family' if pipelines else 'clutter-family'}-{int(seed)}")
+    suffix = "" if model == "specular" else f"-{model}"
+    return scene_from_mapping(survey_mapping(seed, pings=pings, pipelines=pipelines, model=model),
+                              name=f"{'family' if pipelines else 'clutter-family'}-{int(seed)}{suffix}")
 
 
-def clutter_scene(seed: int, *, pings: int = 40) -> Scene:
-    """The clutter-only survey drawn from ``seed``: :func:`survey_scene` without pipelines."""
-    return survey_scene(seed, pings=pings, pipelines=False)
+def clutter_scene(seed: int, *, pings: int = 40, model: str = "specular") -> Scene:
+    """The clutter-only survey drawn from ``seed``: :func:`survey_scene` without pipelines (``model`` as there)."""
+    return survey_scene(seed, pings=pings, pipelines=False, model=model)
 
 
-def survey_mapping(seed: int, *, pings: int = 40, pipelines: bool = True) -> dict:
-    """The scene mapping (the tables of a scene's TOML file) of the survey drawn from ``seed``."""
+def survey_mapping(seed: int, *, pings: int = 40, pipelines: bool = True, model: str = "specular") -> dict:
+    """The scene mapping (the tables of a scene's TOML file) of the survey drawn from ``seed``, under the
+    physics ``model`` (``"specular"`` or ``"discrete"``; the draw itself does not depend on it)."""
     require(int(seed) == seed and seed >= 0, OptionError, f"a survey family's seed must be an integer >= 0, got {seed!r}")
     require(pings >= 2, OptionError, f"a survey family's line needs at least 2 pings, got {pings}")
+    require(model in PHYSICS_MODELS, OptionError,
+            f"a survey family's model must be one of {', '.join(PHYSICS_MODELS)}, got {model!r}")
     rng = np.random.default_rng([int(seed), 20261204])
     depth = _u(rng, *DEPTH_RANGE_M, 2)
     record = min((depth - DRAFT_M) / math.cos(math.radians(RECORD_ANGLE_DEG)), RECORD_MAX_M)
@@ -109,6 +120,8 @@ def survey_mapping(seed: int, *, pings: int = 40, pipelines: bool = True) -> dic
     targets = (pipes if pipelines else []) + _boulders(rng, depth, (pings - 1) * step)
     if targets:
         mapping["target"] = targets
+    if model != "specular":
+        mapping["model"] = {"physics": model}
     return mapping
 
 

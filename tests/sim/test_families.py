@@ -1,9 +1,10 @@
 """The random survey families: draws within the documented ranges at their documented shares, pipelines
-inside the swath and apart along the whole line (the simulator's own geometry), reproducible draws, and a
-validation split apart from the tuning seeds."""
+inside the swath and apart along the whole line (the simulator's own geometry), reproducible draws, a
+validation split apart from the tuning seeds, and the same draws under either physics."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -20,6 +21,7 @@ from clbeam.sim.families import (
     survey_scene,
 )
 from clbeam.sim.scene import LineTarget, PointTarget
+from clbeam.sim.simulator import Simulator
 from clbeam.sim.targets import line_crossing
 
 DRAWS = range(200)
@@ -96,3 +98,32 @@ def test_a_clutter_survey_is_its_twin_without_pipelines():
     assert _pipes(full) and not _pipes(clutter)
     assert [t for t in full.targets if isinstance(t, PointTarget)] == list(clutter.targets)
     assert full.seabed == clutter.seabed and full.motion == clutter.motion and full.water == clutter.water
+
+
+def test_a_draw_is_the_same_survey_under_either_physics():
+    """The discrete draw is the specular one with only ``model.physics`` (and the name) changed, for
+    pipelines and clutter; and its pipes' discrete scatterers cross each ping's plane where the scene's
+    arc does (:func:`line_crossing`), at the burial the draw gave."""
+    for seed in (0, 5, VALIDATION_SEEDS[0]):
+        for make in (survey_scene, clutter_scene):
+            spec, disc = make(seed, pings=6), make(seed, pings=6, model="discrete")
+            assert disc.model.physics == "discrete" and spec.model.physics == "specular"
+            assert disc.name == spec.name + "-discrete"
+            same = dataclasses.replace(disc, name=spec.name, model=spec.model, discrete=None)
+            assert same == spec
+    with pytest.raises(OptionError, match="model"):
+        survey_scene(3, model="kirchhoff")
+    scene = survey_scene(2, pings=3, model="discrete")
+    sim = Simulator(scene, seed=2)
+    for index in range(3):
+        g = sim.geometry(index)
+        for k, t in enumerate(scene.targets):
+            if not isinstance(t, LineTarget):
+                continue
+            y, z, _ = line_crossing(scene, t, g.along_m)
+            pts = sim._discrete.pipes[k]
+            near = np.argmin(np.abs(pts["x"] - g.along_m))
+            if t.gap_x_m and t.gap_x_m[0] - 1 <= g.along_m <= t.gap_x_m[1] + 1:
+                continue
+            # the nearest scatterer is within half a spacing of the plane along the pipe
+            assert abs(pts["y"][near] - y) <= 0.06 + 1e-3 and abs(pts["z"][near] - z) <= 1e-3, (t.name, index)
