@@ -17,7 +17,7 @@ def pyopencl():
 
 
 #: the source file of each kernel entry point
-KERNEL_FILES = {"beamform": "beamform.cl", "beam_to_grid": "beam_interp.cl"}
+KERNEL_FILES = {"beamform": "beamform.cl", "beam_to_grid": "beam_interp.cl", "fd_steer": "fdbeam.cl"}
 
 
 def output_macros(outs: frozenset) -> list:
