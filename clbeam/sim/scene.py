@@ -571,7 +571,7 @@ class Discrete:
     subbottom_density_per_m2: float = 0.06
     subbottom_depth_m: float = 0.1
     pipe_spacing_m: float = 0.1
-    pipe_strength_db: float = -10.0
+    pipe_strength_db: float = 0.0
     tx_pattern: str = "band"
 
     def __post_init__(self):

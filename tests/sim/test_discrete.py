@@ -245,3 +245,18 @@ def test_discrete_scene_keys_are_checked_with_one_line_errors():
         with pytest.raises(err) as info:
             load_scene("avo2", overrides={"model.physics": "discrete"})
         assert "\n" not in str(info.value) and "province" in str(info.value)
+
+
+def test_the_built_in_discrete2_scene_is_the_two_pipe_survey_it_describes():
+    """24 pings 8.23 m apart over 200 m of water, no motion, sediment as fast as water; pipe A 5° to the
+    track crossing 330-350 m to starboard 1 m deep, B -12° crossing 420-460 m to port 1.5 m deep."""
+    sc = load_scene("discrete2")
+    assert sc.model.physics == "discrete" and sc.discrete.tx_pattern == "centre"
+    assert sc.survey.pings == 24 and sc.survey.step_m == pytest.approx(8.23, abs=0.005)
+    assert sc.seabed.depth_m == 200.0 and sc.seabed.sound_speed_ratio == 1.0 and sc.motion == type(sc.motion)()
+    assert sc.discrete.seabed_density_per_m2 == 0.06 and sc.discrete.seabed_depth_m == 0.05
+    assert sc.discrete.pipe_spacing_m == 0.1
+    ds = simulate(sc, pings=[0, 23])
+    y, z, sz = (ds[f"truth_target_{k}"].values for k in ("y", "z", "seabed_z"))
+    assert 330.0 <= y[0, 0] < y[1, 0] <= 350.0 and -460.5 <= y[1, 1] < y[0, 1] <= -420.0
+    assert np.allclose(z - sz, [[1.0, 1.5], [1.0, 1.5]]) and np.allclose(ds.truth_target_angle.values, [5.0, -12.0])
