@@ -90,10 +90,7 @@ def local_contrast(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.n
     tail, below its maximum; a weak peak beside a stronger echo takes that echo's) and of the mean of the
     window's cells outside the guard's cross (dB re the intensity's unit); the contrast is their difference.
 
-    Many rows' windows (more cells than :data:`TABLE_CELLS_RATIO` images) are summed from a summed-area
-    table and their echoes taken from a sparse table of maxima, a few passes over the image whatever the
-    number of rows; the clutter then agrees with the box-by-box sums to about 1e-10 dB (float64 rounding),
-    and a window the table cannot resolve (:data:`TABLE_RELIABLE_FRACTION`) is summed box by box.
+    :func:`contrast_at` of the rows' ``range_m`` and ``angle_deg``.
 
     Parameters
     ----------
@@ -113,54 +110,72 @@ def local_contrast(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.n
         the window outside the cross has none (a grid of one angle or one range: the cross is all of it,
         and the test passes every peak).
     """
+    return contrast_at(intensity, ranges_m, angles_deg, np.array([row["range_m"] for row in rows], dtype=np.float64),
+                       np.array([row["angle_deg"] for row in rows], dtype=np.float64), window=window, guard=guard)
+
+
+def contrast_at(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.ndarray, range_m: np.ndarray,
+                angle_deg: np.ndarray, *, window: tuple, guard: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`local_contrast` of peaks at ``range_m`` (m) and ``angle_deg`` (degree), arrays of one length:
+    ``(echo_db, clutter_db)`` (dB re the intensity's unit), each peak at its nearest grid node.
+
+    Many peaks' windows (more cells than :data:`TABLE_CELLS_RATIO` times the band of the image they cover)
+    are summed from a summed-area table of that band and their echoes taken from sliding maxima along
+    range, a few passes over the band whatever the number of peaks; the clutter then agrees with the
+    box-by-box sums to about 1e-10 dB (float64 rounding), and a window the table cannot resolve
+    (:data:`TABLE_RELIABLE_FRACTION`) is summed box by box.  Fewer are summed box by box.
+    """
     x = np.asarray(intensity)
     r, a = np.asarray(ranges_m, dtype=np.float64), np.asarray(angles_deg, dtype=np.float64)
     (wr, wa), (gr, ga) = window, guard
-    echo, clutter = np.full(len(rows), np.nan), np.full(len(rows), np.nan)
-    if not rows:
+    n = np.size(range_m)
+    echo, clutter = np.full(n, np.nan), np.full(n, np.nan)
+    if n == 0:
         return echo, clutter
-    i = _nearest(a, np.array([row["angle_deg"] for row in rows], dtype=np.float64))
-    j = _nearest(r, np.array([row["range_m"] for row in rows], dtype=np.float64))
-    # every row's bounds at once: angle (window, guard) x range (window, guard)
+    i, j = _nearest(a, np.asarray(angle_deg, dtype=np.float64)), _nearest(r, np.asarray(range_m, dtype=np.float64))
+    # every peak's bounds at once: angle (window, guard) x range (window, guard)
     (aw, ag), (rw, rg) = _bounds(a, i, (wa, ga)), _bounds(r, j, (wr, gr))
     # the window less the cross of the echo's range band and its angle band (inclusion-exclusion)
     boxes = [(aw, rw), (aw, rg), (ag, rw), (ag, rg)]
-    total, count, n_g, peak = (np.zeros(len(rows)), np.zeros(len(rows), dtype=np.int64),
-                               np.zeros(len(rows), dtype=np.int64), np.full(len(rows), np.nan))
-    alone = np.arange(len(rows))
-    if np.sum((aw[:, 1] - aw[:, 0]) * (rw[:, 1] - rw[:, 0])) > TABLE_CELLS_RATIO * x.size:
-        total, count, n_g, reliable = _clutter_from_table(x, boxes)
-        peak = box_maxima(x, ag, rg)
+    total, count, n_g, peak = np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.full(n, np.nan)
+    alone = np.arange(n)
+    a0, a1 = int(min(aw[:, 0].min(), ag[:, 0].min())), int(max(aw[:, 1].max(), ag[:, 1].max()))
+    r0, r1 = int(min(rw[:, 0].min(), rg[:, 0].min())), int(max(rw[:, 1].max(), rg[:, 1].max()))
+    if np.sum((aw[:, 1] - aw[:, 0]) * (rw[:, 1] - rw[:, 0])) > TABLE_CELLS_RATIO * (a1 - a0) * (r1 - r0):
+        band = x[a0:a1, r0:r1]   # the table and the maxima over the band the boxes cover only
+        finite = bool(np.isfinite(band.sum()))   # (an overflowing sum only takes the masked way)
+        total, count, n_g, reliable = _clutter_from_table(band, [(b_a - a0, b_r - r0) for b_a, b_r in boxes], finite)
+        peak = box_maxima(band, ag - a0, rg - r0, finite=finite)
         alone = np.flatnonzero(~reliable)
-    for k in alone:  # box by box: few rows, or a quiet window beside a far brighter echo
+    for k in alone:  # box by box: few peaks, or a quiet window beside a far brighter echo
         (total_w, n_w), (total_gr, n_gr), (total_ga, n_ga), (total_g, n_g[k], peak[k]) = \
             _box_sums(x, aw[k], ag[k], rw[k], rg[k])
         total[k], count[k] = total_w - total_gr - total_ga + total_g, n_w - n_gr - n_ga + n_g[k]
-    for k in range(len(rows)):
-        if n_g[k] and peak[k] > 0:
-            echo[k] = 10 * math.log10(peak[k])
-        if count[k] > 0 and total[k] > 0:
-            clutter[k] = 10 * math.log10(total[k] / count[k])
+    has_echo, has_clutter = (n_g > 0) & (peak > 0), (count > 0) & (total > 0)
+    echo[has_echo] = 10 * np.log10(peak[has_echo])
+    clutter[has_clutter] = 10 * np.log10(total[has_clutter] / count[has_clutter])
     return echo, clutter
 
 
-#: the rows' clutter windows come from a summed-area table rather than box by box where they hold more
-#: cells than this many times the image (the table costs a few passes over it; a box, one over its cells)
-TABLE_CELLS_RATIO = 4.0
+#: the peaks' clutter windows come from a summed-area table rather than box by box where they hold more
+#: cells than this many times the band of the image they cover (the table costs a few passes over the
+#: band; a box, one over its cells and a few dozen microseconds)
+TABLE_CELLS_RATIO = 1.0
 #: a table's clutter sum stands where it is at least this fraction of the table's values it is made of
 #: (their rounding is about 1e-14 of them); a quieter window, beside an echo far brighter (a noise-free
 #: image spans 10^20 and more), is summed box by box
 TABLE_RELIABLE_FRACTION = 1e-6
 #: angle rows per block of the tables' passes
 TABLE_BLOCK_ROWS = 64
+#: table rows (the corners' angle rows) whose range sums are taken in one call
+TABLE_CHUNK_ROWS = 32
 
 
-def _clutter_from_table(x: np.ndarray, boxes: list) -> tuple:
+def _clutter_from_table(x: np.ndarray, boxes: list, finite: bool) -> tuple:
     """The clutter sums and counts (the first box less the next two plus the last, as in
-    :func:`local_contrast`), the last box's counts and whether each sum is reliable
-    (:data:`TABLE_RELIABLE_FRACTION`), from a summed-area table of ``x``'s finite cells."""
+    :func:`contrast_at`), the last box's counts and whether each sum is reliable
+    (:data:`TABLE_RELIABLE_FRACTION`), from a summed-area table of ``x``'s finite cells (``finite``: all are)."""
     n_r = x.shape[1]
-    finite = bool(np.isfinite(x.sum(dtype=np.float64)))
     # the corners (first, first), (first, end), (end, first), (end, end) of every box, flat in the table
     corners = np.concatenate([b_a[:, k] * (n_r + 1) + b_r[:, m] for b_a, b_r in boxes for k in (0, 1) for m in (0, 1)])
     at, where = np.unique(corners, return_inverse=True)
@@ -182,30 +197,53 @@ def _clutter_from_table(x: np.ndarray, boxes: list) -> tuple:
 def _table_at(x: np.ndarray, at: np.ndarray, finite: bool) -> np.ndarray:
     """The summed-area table ``T[a, r]`` (the float64 sum of ``x[:a, :r]``, non-finite cells as 0) at the
     sorted flat indices ``at`` of the ``(n_angle + 1, n_range + 1)`` table: running sums of each range over
-    the rows, added up along range only at the rows a corner lies on."""
+    the rows, added up along range only at the rows a corner lies on, :data:`TABLE_CHUNK_ROWS` of those
+    rows in one call."""
     n_r = x.shape[1]
+    width = n_r + 2   # a buffer row: 0, each range's sum over the rows above, 0
+    row_of = at // (n_r + 1)
+    firsts = np.flatnonzero(np.r_[True, row_of[1:] != row_of[:-1]])   # each corner row's first corner in ``at``
+    rows, bounds = row_of[firsts], np.r_[firsts, at.size]
     out = np.empty(at.size)
-    rows, starts = np.unique(at // (n_r + 1), return_index=True)
-    ends = np.r_[starts[1:], at.size]
-    columns = np.zeros(n_r + 2)   # the sums of each range's cells above the current row, from index 1 (and a 0)
-    done = 0
-    for row, s, e in zip(rows, starts, ends):
-        for b0 in range(done, row, TABLE_BLOCK_ROWS):   # the rows since the last corner, a block at a time
-            block = x[b0:min(b0 + TABLE_BLOCK_ROWS, row)]
-            columns[1:-1] += (block if finite else np.where(np.isfinite(block), block, 0.0)).sum(axis=0, dtype=np.float64)
-        done = row
-        # T[row, c] = columns[:c + 1].sum() at each corner's c (distinct, increasing): the pieces between, added up
-        ends_at = at[s:e] - row * (n_r + 1) + 1
-        out[s:e] = np.cumsum(np.add.reduceat(columns, np.r_[0, ends_at])[:-1])
+    buf = np.zeros((min(TABLE_CHUNK_ROWS, rows.size), width))
+    columns, done = np.zeros(n_r), 0
+    for c0 in range(0, rows.size, TABLE_CHUNK_ROWS):
+        chunk, above = rows[c0:c0 + TABLE_CHUNK_ROWS], columns
+        for k, row in enumerate(chunk):
+            sums = buf[k, 1:-1]
+            if finite and row == done + 1:   # one row since the last corner (the same sum as a block's)
+                np.add(above, x[done], out=sums)
+            else:
+                np.copyto(sums, above)
+                for b0 in range(done, row, TABLE_BLOCK_ROWS):   # the rows since the last corner, a block at a time
+                    block = x[b0:min(b0 + TABLE_BLOCK_ROWS, row)]
+                    sums += (block if finite else np.where(np.isfinite(block), block, 0.0)).sum(axis=0, dtype=np.float64)
+            done, above = row, sums
+        np.copyto(columns, above)
+        # T[row, c] = buf[k, :c + 1].sum(): the pieces between a row's corners (from 0) added up along the row
+        s, e, m = bounds[c0], bounds[c0 + len(chunk)], np.diff(bounds[c0:c0 + len(chunk) + 1])
+        first = bounds[c0:c0 + len(chunk)] - s + np.arange(len(chunk))   # each row's first piece
+        ends = np.repeat(np.arange(len(chunk)) * width, m) + (at[s:e] - row_of[s:e] * (n_r + 1)) + 1
+        pieces = np.add.reduceat(buf[:len(chunk)].ravel(),
+                                 np.insert(ends, bounds[c0:c0 + len(chunk)] - s, np.arange(len(chunk)) * width))
+        k_of = np.repeat(np.arange(len(chunk)), m + 1)
+        place = np.arange(pieces.size) - first[k_of]
+        padded = np.zeros((len(chunk), int(m.max()) + 1))
+        padded[k_of, place] = pieces
+        np.cumsum(padded, axis=1, out=padded)
+        corner = place < m[k_of]   # a row's last piece runs past its last corner
+        out[s:e] = padded[k_of[corner], place[corner]]
     return out
 
 
-def box_maxima(x: np.ndarray, box_a: np.ndarray, box_r: np.ndarray) -> np.ndarray:
+def box_maxima(x: np.ndarray, box_a: np.ndarray, box_r: np.ndarray, *, finite: bool | None = None) -> np.ndarray:
     """The largest finite cell of each box (angle rows ``box_a[k, 0]:box_a[k, 1]``, ranges
     ``box_r[k, 0]:box_r[k, 1]`` of ``x``; NaN where it has none), every box at once.
 
-    A block of rows at a time holds a sparse table of maxima over 2^k ranges; a box row's maximum is then
-    that of two of its entries, whatever the box's width.
+    The boxes of the commonest width (on a regular grid, all but those the image's edges clip) take the
+    maxima of that many ranges from their first columns, a block of rows at a time (a few passes over the
+    rows they cover), and then the largest over their rows; the others a sparse table of maxima over 2^k
+    ranges (:func:`_sparse_box_maxima`).  Maxima are exact in any precision: the values are ``x``'s own.
 
     Parameters
     ----------
@@ -213,7 +251,73 @@ def box_maxima(x: np.ndarray, box_a: np.ndarray, box_r: np.ndarray) -> np.ndarra
         ``(n_angle, n_range)`` values.
     box_a, box_r : numpy.ndarray
         ``(n, 2)`` first and end angle, and range, index of each box.
+    finite : bool, optional
+        Whether every cell of ``x`` is finite (``None``: found out).
     """
+    box_a, box_r = np.asarray(box_a, dtype=np.int64), np.asarray(box_r, dtype=np.int64)
+    width = box_r[:, 1] - box_r[:, 0]
+    height = np.where(width > 0, np.maximum(box_a[:, 1] - box_a[:, 0], 0), 0)
+    peak = np.full(len(box_a), np.nan)
+    some = np.flatnonzero(height > 0)
+    if some.size == 0:
+        return peak
+    common = int(np.bincount(width[some]).argmax())
+    sliding = some[width[some] == common]
+    rest = some[width[some] != common]
+    if finite is None:
+        finite = bool(np.isfinite(x.sum()))
+    if sliding.size:
+        peak[sliding] = _sliding_box_maxima(x, box_a[sliding], box_r[sliding, 0], common, finite)
+    if rest.size > BOX_BY_BOX_MAXIMA:
+        peak[rest] = _sparse_box_maxima(x, box_a[rest], box_r[rest])
+    for k in rest if rest.size <= BOX_BY_BOX_MAXIMA else ():   # a few boxes (the edges'): each on its own
+        box = x[box_a[k, 0]:box_a[k, 1], box_r[k, 0]:box_r[k, 1]]
+        box = box if finite else box[np.isfinite(box)]
+        peak[k] = box.max() if box.size else np.nan
+    return peak
+
+
+#: at most this many boxes of other widths than the commonest are each looked at on their own
+BOX_BY_BOX_MAXIMA = 256
+
+
+def _sliding_box_maxima(x: np.ndarray, box_a: np.ndarray, first: np.ndarray, width: int, finite: bool) -> np.ndarray:
+    """:func:`box_maxima` of boxes of one ``width`` of ranges from the columns ``first`` (at least one row
+    each): a block of rows at a time, the maximum of ``width`` ranges from every column (that of 2^k ranges
+    by halves, then of two overlapping such spans), and the largest of it over each box's rows in the
+    block (NaN where none is finite)."""
+    n_a, n_r = x.shape
+    dtype = np.result_type(x.dtype, np.float32)
+    span = 1 << (width.bit_length() - 1)   # the largest power of 2 not above the width
+    order = np.argsort(box_a[:, 0], kind="stable")
+    starts, tallest = box_a[order, 0], int((box_a[:, 1] - box_a[:, 0]).max())
+    peak = np.full(len(box_a), -np.inf, dtype=dtype)
+    bufs = np.empty((2, TABLE_BLOCK_ROWS * n_r), dtype=dtype)   # flat: a block's rows ``n_r`` apart
+    for b0 in range(int(starts[0]), int(box_a[:, 1].max()), TABLE_BLOCK_ROWS):
+        b1 = min(b0 + TABLE_BLOCK_ROWS, n_a)
+        near = order[np.searchsorted(starts, b0 - tallest + 1):np.searchsorted(starts, b1)]
+        near = near[box_a[near, 1] > b0]
+        if near.size == 0:
+            continue
+        cur = x[b0:b1] if finite else np.where(np.isfinite(x[b0:b1]), x[b0:b1], -np.inf).astype(dtype, copy=False)
+        valid, s, k = n_r, 1, 0
+        while s < span:   # cur[:, c]: the maximum of s ranges from c (c < valid)
+            nxt = bufs[k].reshape(TABLE_BLOCK_ROWS, n_r)[:b1 - b0, :valid - s]
+            np.maximum(cur[:, :valid - s], cur[:, s:valid], out=nxt)
+            cur, valid, s, k = nxt, valid - s, 2 * s, 1 - k
+        full = bufs[k].reshape(TABLE_BLOCK_ROWS, n_r)[:b1 - b0, :valid - (width - span)]
+        np.maximum(cur[:, :valid - (width - span)], cur[:, width - span:valid], out=full)
+        # each box's rows within the block (a box's rows beyond it repeat its last row in it)
+        rows = np.clip(box_a[near, :1] + np.arange(tallest), np.maximum(box_a[near, :1], b0),
+                       np.minimum(box_a[near, 1:], b1) - 1) - b0
+        peak[near] = np.maximum(peak[near], np.take(bufs[k], rows * n_r + first[near, None]).max(axis=1))
+    peak = peak.astype(np.float64)
+    return np.where(peak > -np.inf, peak, np.nan)
+
+
+def _sparse_box_maxima(x: np.ndarray, box_a: np.ndarray, box_r: np.ndarray) -> np.ndarray:
+    """:func:`box_maxima` of boxes of any widths: a block of rows at a time holds a sparse table of maxima
+    over 2^k ranges; a box row's maximum is then that of two of its entries, whatever the box's width."""
     n_a, n_r = x.shape
     width = box_r[:, 1] - box_r[:, 0]
     height = np.where(width > 0, np.maximum(box_a[:, 1] - box_a[:, 0], 0), 0)
