@@ -188,15 +188,20 @@ class _Accumulator:
         base = base.ravel()
         ph = ph.ravel()
         w = w.ravel()
-        parts = (w.real, w.imag) if np.iscomplexobj(w) else (w,)
-        for k, part in enumerate(parts):
+        if not np.iscomplexobj(w):
             acc = np.zeros(n_ch * span)
             for j, col in enumerate(cols):
-                acc += np.bincount(base + j, col[ph] * part, minlength=n_ch * span)
-            if k == 0:
-                out[:, lo:hi] += acc.reshape(n_ch, span)
-            else:
-                out[:, lo:hi] += 1j * acc.reshape(n_ch, span)
+                acc += np.bincount(base + j, col[ph] * w, minlength=n_ch * span)
+            out[:, lo:hi] += acc.reshape(n_ch, span)
+            return out
+        # the real and imaginary parts share the indices and the taps
+        wr, wi = np.ascontiguousarray(w.real), np.ascontiguousarray(w.imag)
+        acc_r, acc_i = np.zeros(n_ch * span), np.zeros(n_ch * span)
+        for j, col in enumerate(cols):
+            idx, tap = base + j, col[ph]
+            acc_r += np.bincount(idx, tap * wr, minlength=n_ch * span)
+            acc_i += np.bincount(idx, tap * wi, minlength=n_ch * span)
+        out[:, lo:hi] += (acc_r + 1j * acc_i).reshape(n_ch, span)
         return out
 
     def total(self) -> np.ndarray:

@@ -59,6 +59,7 @@ modules the simulator is split into, by what each synthesises:
 - :mod:`clbeam.sim.targets`: point and line (pipeline) echoes;
 - :mod:`clbeam.sim.seabed`: random interface scatterers and seabed provinces;
 - :mod:`clbeam.sim.specular`: image-source echoes and multiples;
+- :mod:`clbeam.sim.discrete`: the discrete-scatterer physics (``model.physics = "discrete"``);
 - :mod:`clbeam.sim.truth`: target positions and where an imager shows them;
 - :mod:`clbeam.sim.render`: echo sets into samples.
 
@@ -106,6 +107,7 @@ from clbeam.sim.propagation import Propagation
 from clbeam.sim.render import Echoes, Renderer
 from clbeam.sim.scene import (
     SPECULAR_MODELS,
+    Discrete,
     LineTarget,
     Model,
     Motion,
@@ -128,7 +130,7 @@ from clbeam.sim.truth import TRUTH_KEYS, TRUTH_VARIABLES, image_position, ping_t
 
 __all__ = [
     "DB_PER_NEPER", "SPECULAR_MODELS", "TRUTH_KEYS", "TRUTH_VARIABLES",
-    "LineTarget", "Model", "Motion", "PingGeometry", "PointTarget", "Province", "Record", "Scattering", "Scene",
+    "Discrete", "LineTarget", "Model", "Motion", "PingGeometry", "PointTarget", "Province", "Record", "Scattering", "Scene",
     "Seabed", "Simulator", "Sonar", "SubBottom", "Survey", "Water",
     "attenuation_np_per_m_hz", "ka_sin_phi", "list_scenes", "load_scene", "nadir_angle_deg",
     "reflection_coefficient", "refracted_path", "scene_from_mapping", "simulate", "transmit_beamwidth_deg",
