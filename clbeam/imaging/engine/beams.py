@@ -60,12 +60,18 @@ class BeamSampling:
         ``K >= 1``: beams every ``1 / (2 B K)`` rad (``B`` the angular band limit).
     taps : int
         Even number of beams each output angle is interpolated from (Kaiser-windowed sinc).
+    domain : {"time", "frequency"}
+        How the beams' sums are formed: delay-and-sum with the setting's time interpolation, or phase
+        ramps on the channels' spectra zone by zone (:mod:`clbeam.imaging.engine.fdbeams`; straight rays).
     """
 
     oversampling: float = 1.5
     taps: int = 12
+    domain: str = "time"
 
     def __post_init__(self):
+        require(self.domain in ("time", "frequency"), OptionError,
+                f"beam domain must be 'time' or 'frequency', got {self.domain!r}")
         require(math.isfinite(self.oversampling) and 1.0 <= self.oversampling <= 16.0, OptionError,
                 f"beam oversampling must be within 1-16, got {self.oversampling!r}")
         require(int(self.taps) == self.taps and self.taps >= 2 and self.taps % 2 == 0 and self.taps <= 64, OptionError,
@@ -175,12 +181,15 @@ class BeamPlan:
     beam_window_m : numpy.ndarray or None
         ``(n_beam, 2)`` range interval (m) to compute per beam: what the
         output windows need; ``None`` for every range.
+    domain : str
+        :attr:`BeamSampling.domain` of the sampling it was made for.
     """
 
     grid: PolarGrid
     first_tap: np.ndarray
     weights: np.ndarray
     beam_window_m: np.ndarray | None
+    domain: str = "time"
 
     @property
     def taps(self) -> int:
@@ -226,7 +235,7 @@ def beam_plan(grid: PolarGrid, band_limit_cycles_per_rad: float, sampling: BeamS
     w = kaiser_sinc(offsets, half)
     w /= w.sum(axis=1, keepdims=True)
     window = None if range_window_m is None else _beam_windows(range_window_m, first, sampling.taps, n_beams)
-    return BeamPlan(beams, first.astype(np.int32), w, window)
+    return BeamPlan(beams, first.astype(np.int32), w, window, sampling.domain)
 
 
 def _beam_windows(range_window_m: np.ndarray, first: np.ndarray, taps: int, n_beams: int) -> np.ndarray:

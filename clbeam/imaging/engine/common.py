@@ -501,8 +501,7 @@ class Engine:
         """Sums on the plan's beams, interpolated to ``grid``; flagged cells imaged directly, as points."""
         weighted = inp.weights is not None
         t = [time.perf_counter()]
-        beam = self._beamform(inp.for_grid(plan.grid), plan.grid, mode, frozenset({"sums", "signature"}),
-                              plan.beam_window_m, scale)
+        beam = self._beam_sums(inp, plan, mode, scale)
         t.append(time.perf_counter())
         out_windows = user_windows(grid, range_window_m) if range_window_m is not None \
             else np.tile([0, grid.shape[1]], (grid.shape[0], 1))
@@ -520,6 +519,26 @@ class Engine:
         sums = _sums_from(arrays)
         sums.timings_s = {"beams_s": t[1] - t[0], "to_grid_s": t[2] - t[1], "flagged_s": time.perf_counter() - t[2]}
         return sums
+
+    def _beam_sums(self, inp: BeamformInput, plan, mode: InterpMode, scale: float) -> Sums:
+        """``S, Q, M, G`` (``W``) on the plan's beams: delay-and-sum in time, or in the frequency domain
+        (:mod:`clbeam.imaging.engine.fdbeams`, its near rows and the record's ends in time) for a plan of
+        that domain."""
+        sums_out = frozenset({"sums", "signature"})
+        if plan.domain != "frequency":
+            return self._beamform(inp.for_grid(plan.grid), plan.grid, mode, sums_out, plan.beam_window_m, scale)
+        from clbeam.imaging.engine.fdbeams import frequency_beam_sums
+
+        return frequency_beam_sums(inp, plan.grid, steer=self._steering(), window_m=plan.beam_window_m, scale=scale,
+                                   time_domain=lambda rows: self._beamform(inp, rows, mode, sums_out,
+                                                                           plan.beam_window_m, scale))
+
+    def _steering(self):
+        """The frequency-domain beams' steering sums (:func:`clbeam.imaging.engine.fdbeams.steer_numpy`'s
+        signature): float64 NumPy here, a kernel on a device's engine."""
+        from clbeam.imaging.engine.fdbeams import steer_numpy
+
+        return steer_numpy
 
     def _exponent(self, inp: BeamformInput) -> int:
         """:func:`amplitude_exponent` of the data, kept for the last data token."""

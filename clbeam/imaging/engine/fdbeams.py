@@ -17,7 +17,8 @@ with ``t(R) = 2 R / c - t0``; on a channel's spectrum that delay is the phase ra
     B(f) = sum_n w_n X_n(f) exp(i 2 pi f tau_n),   S(R) = B's inverse transform at t(R).
 
 ``Q = sum w_n |p_n|^2`` is formed the same way from the spectra of the squared envelopes (real, band
-``+-(f1 - f0)``), with the same delays.
+``+-(f1 - f0)``), with the same delays; the envelopes are squared at twice the sample rate, where their
+band (twice the channels' width) does not alias.
 
 **The zone bound.**  With ``s = 1/R`` and ``b^2 = |o|^2 - (u.o)^2`` (cells lie in the plane ``x = 0``),
 ``dd/ds = R^2 b^2 / (D (D + R - u.o))`` with ``D = |R u - o|``; for ``R > |o|`` this is at most
@@ -61,7 +62,7 @@ MIN_ZONE_ROWS = 16
 #: spreads over about ``fs / SEGMENT_MARGIN`` beyond the data's own
 SEGMENT_MARGIN = 128
 #: fraction of a segment's energy the kept frequency bins may leave out
-DROPPED_ENERGY = 1e-10
+DROPPED_ENERGY = 1e-9
 #: rows of range the zone plan's nearest range is not allowed below, in units of the largest offset: keeps
 #: ``kappa`` at most (4/3)^2
 NEAR_FIELD_OFFSETS = 4.0
@@ -323,8 +324,7 @@ def frequency_beam_sums(inp: BeamformInput, grid: PolarGrid, *, time_domain, ste
         seg = np.asarray(inp.data[:, zone.start:zone.end])
         if not np.all(np.isfinite(seg)):
             continue                              # skipped samples: these rows in the time domain
-        _zone_sums(inp, grid, zone, seg * (scale * weights[:, None]), seg * scale, zones.focus_m[z], steer, out,
-                   margin)
+        _zone_sums(inp, grid, zone, seg * scale, weights, zones.focus_m[z], steer, out, margin)
         out.m[:, rows] = inp.n_channels
         out.signature[:, rows] = float(np.sum(channel_signature(inp.n_channels)))
         if out.w is not None:
@@ -336,27 +336,30 @@ def frequency_beam_sums(inp: BeamformInput, grid: PolarGrid, *, time_domain, ste
     return out
 
 
-def _zone_sums(inp, grid, zone: _Zone, weighted: np.ndarray, plain: np.ndarray, focus_m: float, steer, out: Sums,
-               margin: int) -> None:
-    """One zone's ``S`` and ``Q`` into ``out``: the tapered segment's band bins steered and evaluated at the rows."""
-    n = plain.shape[1]
-    taper = hann_taper(n, margin)
-    spec = scipy.fft.fft(weighted * taper, zone.length, axis=-1, workers=WORKERS)
-    env = np.abs(plain * taper) ** 2
-    w = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
-    env_spec = scipy.fft.rfft(env * w[:, None], zone.length, axis=-1, workers=WORKERS)
-    delays = zone_delays_samples(inp, grid.angles_deg, focus_m) / zone.length     # cycles per bin
-    half = zone.length // 2                       # bins from -L/2 on: negative frequencies kept where present
-    k0, k1 = kept_bins(np.fft.fftshift(np.sum(np.abs(spec) ** 2, axis=0)))
-    if k1 > k0:
-        first = k0 - half
-        steered = steer(np.take(spec, np.arange(first, k1 - half) % zone.length, axis=1), delays, first)
-        out.s[:, zone.rows] = evaluate_at(steered, first, zone.length, zone.positions)
-    q0, q1 = kept_bins(np.sum(np.abs(env_spec) ** 2 * np.r_[1.0, np.full(env_spec.shape[1] - 1, 2.0)], axis=0))
-    q0 = 0                                        # the envelope's spectrum from DC on (real, two-sided)
-    env_spec[:, 0] *= 0.5                         # its DC bin counted once in 2 Re(...)
-    steered_q = steer(env_spec[:, q0:q1], delays, q0)
-    out.q[:, zone.rows] = 2.0 * evaluate_at(steered_q, q0, zone.length, zone.positions).real
+def _zone_sums(inp, grid, zone: _Zone, seg: np.ndarray, weights: np.ndarray, focus_m: float, steer,
+               out: Sums, margin: int) -> None:
+    """One zone's ``S`` and ``Q`` into ``out``: the tapered segment's kept bins steered and evaluated at the rows;
+    ``Q`` from the squared envelopes of the same band-limited channels at twice the rate (the envelope's
+    band, twice the channels' width, would alias at their rate)."""
+    taper = hann_taper(seg.shape[1], margin)
+    n_fft = zone.length
+    spec = scipy.fft.fft(seg * taper, n_fft, axis=-1, workers=WORKERS)
+    delays = zone_delays_samples(inp, grid.angles_deg, focus_m) / n_fft     # cycles per bin (either rate)
+    k0, k1 = kept_bins(np.fft.fftshift(np.sum(weights[:, None] ** 2 * np.abs(spec) ** 2, axis=0)))
+    if k1 <= k0:
+        return
+    first = k0 - n_fft // 2                       # bins from -L/2 on: negative frequencies kept where present
+    bins = np.arange(first, first + k1 - k0)
+    kept = np.take(spec, bins % n_fft, axis=1)
+    out.s[:, zone.rows] = evaluate_at(steer(weights[:, None] * kept, delays, first), first, n_fft, zone.positions)
+    up = np.zeros((seg.shape[0], 2 * n_fft), np.complex128)
+    up[:, bins % (2 * n_fft)] = kept
+    envelope = np.abs(2.0 * scipy.fft.ifft(up, axis=-1, workers=WORKERS)) ** 2
+    env_spec = scipy.fft.rfft(envelope * weights[:, None], axis=-1, workers=WORKERS)
+    # |p|^2 of a signal on bins k0 .. k1 - 1 lies on bins -(k1 - k0 - 1) .. k1 - k0 - 1: all of them, exactly
+    env_spec = env_spec[:, :k1 - k0]              # from DC on (a real signal's two-sided spectrum)
+    env_spec[:, 0] *= 0.5                         # the DC bin once in 2 Re(...)
+    out.q[:, zone.rows] = 2.0 * evaluate_at(steer(env_spec, delays, 0), 0, 2 * n_fft, 2.0 * zone.positions).real
 
 
 def _time_domain_rows(grid: PolarGrid, rows: np.ndarray, time_domain, out: Sums) -> None:

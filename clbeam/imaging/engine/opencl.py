@@ -190,6 +190,7 @@ class OpenCLEngine(Engine):
         self._lock = threading.Lock()
         self._fresnel_key = None
         self._fresnel_value = float("inf")
+        self._fd_steering = None
         self.max_tile_cells = max_tile_cells
         # the expansion serves float32 speed; float64 is the accuracy mode: exact distances
         self.fresnel = precision == "float32"
@@ -305,6 +306,14 @@ class OpenCLEngine(Engine):
         with self._lock:
             return interpolate_beams_cl(self, plan, beam, outs, out_windows, weighted, min_channels)
 
+    def _steering(self):
+        """The frequency-domain beams' steering sums on the device (kernels/fdbeam.cl), built once."""
+        if self._fd_steering is None:
+            from clbeam.imaging.engine.opencl_fdbeams import ClSteering
+
+            self._fd_steering = _Locked(ClSteering(self), self._lock)
+        return self._fd_steering
+
     def _beamform(self, inp, grid, mode, outs, range_window_m, scale: float) -> Sums:
         """Image one ping on the device (see :meth:`Engine.beamform`): one
         command queue per engine, so calls from several threads take turns."""
@@ -409,6 +418,17 @@ class OpenCLEngine(Engine):
                           self.upload("win_end", np.ascontiguousarray(win[:, 1])),
                           *launch.range_args, *out.buffer_args(launch.signature), np.int32(na_pad), *tab_bufs)
         out.read(a0, na, na_pad)
+
+
+class _Locked:
+    """A callable that holds ``lock`` while it runs (the engine's queue and buffers are shared)."""
+
+    def __init__(self, fn, lock):
+        self.fn, self.lock = fn, lock
+
+    def __call__(self, *args):
+        with self.lock:
+            return self.fn(*args)
 
 
 @dataclass
