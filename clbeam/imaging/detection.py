@@ -435,26 +435,28 @@ def smoothing_eigenvalues(range_step_m: float, bandwidth_hz: float, sound_speed_
 
 def exponential_sum_sf(y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     """``P(sum lam_i E_i > y)``, ``E_i`` independent Exp(1), for every value of ``y``: the
-    Lugannani-Rice saddlepoint approximation (its saddlepoint found by bisection, all values at once)."""
+    Lugannani-Rice saddlepoint approximation, all values at once.
+
+    The saddlepoint solves ``K'(s) = sum lam / (1 - lam s) = y``; ``K'`` increases and is convex below
+    ``1 / max lam``, so Newton's steps from a point above the root (where the largest term alone is ``y``)
+    decrease onto it, quadratically near it, until rounding stops them (float64's resolution: what a
+    bisection to the end gives, to an ulp or two).
+    """
     from scipy.special import ndtr
 
     y = np.asarray(y, dtype=np.float64)
     mean, var, top = float(lam.sum()), float(np.sum(lam * lam)), 1.0 / float(lam.max())
-    yy = np.where(np.isfinite(y) & (y > 0), y, mean)[..., None]
-    lo = np.where(yy > mean, 0.0, -1e9 * top)
-    hi = np.where(yy > mean, top * (1 - 1e-15), 0.0)
-    for _ in range(110):  # K'(s) = sum lam / (1 - lam s) increases with s: halve [lo, hi] onto K'(s) = y
-        mid = 0.5 * (lo + hi)
-        above = np.sum(lam / (1.0 - lam * mid), axis=-1, keepdims=True) > yy
-        new_lo, new_hi = np.where(above, lo, mid), np.where(above, mid, hi)
-        # at float64's resolution every interval stays as it is: later halvings would change nothing
-        settled = np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi)
-        lo, hi = new_lo, new_hi
-        if settled:
+    yy = np.where(np.isfinite(y) & (y > 0), y, mean)
+    s = top - 1.0 / yy   # K'(s) >= y here: its largest term alone is y
+    for _ in range(SADDLEPOINT_MAX_STEPS):
+        r = lam / (1.0 - lam * s[..., None])
+        step = (r.sum(axis=-1) - yy) / np.sum(r * r, axis=-1)
+        lower = s - step
+        down = lower < s
+        if not down.any():   # every one at its root: a further step would not lower it
             break
-    s = 0.5 * (lo + hi)
-    k = -np.sum(np.log1p(-lam * s), axis=-1)
-    s, yy = s[..., 0], yy[..., 0]
+        s = np.where(down, lower, s)
+    k = -np.sum(np.log1p(-lam * s[..., None]), axis=-1)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         w = np.sign(s) * np.sqrt(np.maximum(2.0 * (s * yy - k), 0.0))
         u = s * np.sqrt(np.sum(lam**2 / (1.0 - lam * s[..., None]) ** 2, axis=-1))
@@ -464,6 +466,10 @@ def exponential_sum_sf(y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     p = np.where(near_mean, 0.5 - 2.0 * float(np.sum(lam**3)) / (6.0 * math.sqrt(2 * math.pi) * var**1.5), p)
     p = np.where(np.isfinite(y) & (y > 0), np.clip(p, 0.0, 1.0), np.where(y > 0, 0.0, 1.0))
     return p
+
+
+#: Newton's steps onto the saddlepoint at most (they converge in well under 20 from any start)
+SADDLEPOINT_MAX_STEPS = 100
 
 
 def false_alarm_probability(cf_smooth, n_channels, eigenvalues: np.ndarray):
@@ -490,25 +496,51 @@ def annotate_and_gate(rows: list, *, floor: float, n_channels: int | None, eigen
                       min_snr_db: float | None, contrast=None, min_contrast_db: float | None = None) -> list:
     """Each row with ``snr_db`` (its intensity over the noise floor), ``contrast_db`` (its echo over the
     clutter around it, ``contrast = (echo_db, clutter_db)`` from :func:`local_contrast`; NaN when not given)
-    and ``pfa`` (the false-alarm
-    probability of its smoothed CF over ``n_channels``, NaN when unknown); rows below ``min_snr_db`` left out,
-    and rows below ``min_contrast_db`` where the clutter stands :data:`REVERBERATION_MARGIN_DB` or more above
-    the noise floor (where it does not, the clutter is the noise, which the CF and the SNR test already
-    judge; ``None``: no test; a NaN value passes).  The kept rows are updated in place and returned."""
+    and ``pfa`` (the false-alarm probability of its smoothed CF over ``n_channels``, NaN when unknown); rows
+    kept as :func:`gate_peaks` keeps them, updated in place and returned."""
+    echo, clutter = (None, None) if contrast is None else contrast
+    keep, snr, contrast_db, pfa = gate_peaks(np.array([row["intensity_db"] for row in rows], dtype=np.float64),
+                                             np.array([row["cf"] for row in rows], dtype=np.float64), floor=floor,
+                                             echo_db=echo, clutter_db=clutter, n_channels=n_channels,
+                                             eigenvalues=eigenvalues, min_snr_db=min_snr_db,
+                                             min_contrast_db=min_contrast_db)
+    kept = [rows[k] for k in keep.tolist()]
+    for row, s, c, p in zip(kept, snr.tolist(), contrast_db.tolist(), pfa.tolist()):
+        row.update(snr_db=s, contrast_db=c, pfa=p)   # in place: the rows are the caller's own
+    return kept
+
+
+def gate_peaks(level_db: np.ndarray, cf_smooth: np.ndarray, *, floor: float, echo_db=None, clutter_db=None,
+               n_channels: int | None, eigenvalues: np.ndarray, min_snr_db: float | None,
+               min_contrast_db: float | None = None) -> tuple:
+    """The detection test of peaks given as arrays of one length: their intensities ``level_db`` (dB) over
+    the noise ``floor`` (intensity units; the SNR), their echoes ``echo_db`` over the clutter ``clutter_db``
+    about them (dB, :func:`contrast_at`; ``None``: NaN, unknown) and their smoothed CFs' false-alarm
+    probabilities over ``n_channels`` (NaN when unknown; ``eigenvalues`` from :func:`smoothing_eigenvalues`).
+    Peaks below ``min_snr_db`` are left out, and peaks below ``min_contrast_db`` where the clutter stands
+    :data:`REVERBERATION_MARGIN_DB` or more above the noise floor (where it does not, the clutter is the
+    noise, which the CF and the SNR test already judge; ``None``: no test; a NaN value passes).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(keep, snr_db, contrast_db, pfa)``: the kept peaks' indices (increasing) and their SNR (dB),
+        contrast (dB) and false-alarm probability.
+    """
+    level = np.asarray(level_db, dtype=np.float64)
     floor_db = 10 * math.log10(floor) if floor > 0 and math.isfinite(floor) else math.nan
-    snr = snr_db(rows, floor)
-    echo, clutter = (np.full(len(rows), np.nan),) * 2 if contrast is None else contrast
-    kept = [(row, s, e - c) for row, s, e, c in zip(rows, snr, echo, clutter)
-            if snr_test_passes(s, min_snr_db) and clutter_test_passes(e - c, c - floor_db, min_contrast_db)]
-    if n_channels and kept:  # every row's probability in one call
-        pfa = false_alarm_probability(np.array([row["cf"] for row, _, _ in kept]), n_channels, eigenvalues)
+    snr = level - floor_db if math.isfinite(floor_db) else np.full(level.shape, np.nan)
+    nan = np.full(level.shape, np.nan)
+    echo, clutter = (nan if v is None else np.asarray(v, dtype=np.float64) for v in (echo_db, clutter_db))
+    contrast = echo - clutter
+    keep = np.flatnonzero(snr_tests_pass(snr, min_snr_db) & clutter_tests_pass(contrast, clutter - floor_db,
+                                                                               min_contrast_db))
+    if n_channels and keep.size:  # every peak's probability in one call
+        pfa = np.atleast_1d(false_alarm_probability(np.asarray(cf_smooth, dtype=np.float64)[keep], n_channels,
+                                                    eigenvalues))
     else:
-        pfa = np.full(len(kept), math.nan)
-    out = []
-    for (row, s, c), p in zip(kept, np.atleast_1d(pfa).tolist()):
-        row.update(snr_db=float(s), contrast_db=float(c), pfa=p)   # in place: the rows are the caller's own
-        out.append(row)
-    return out
+        pfa = np.full(keep.size, np.nan)
+    return keep, snr[keep], contrast[keep], pfa
 
 
 def snr_db(rows: list, floor: float) -> list:
@@ -520,17 +552,26 @@ def snr_db(rows: list, floor: float) -> list:
 
 def snr_test_passes(snr: float, min_snr_db: float | None) -> bool:
     """The SNR test of :func:`annotate_and_gate`: passed at ``min_snr_db`` or more, by NaN and by ``None``."""
-    return _passes(snr, min_snr_db)
+    return bool(snr_tests_pass(np.float64(snr), min_snr_db))
+
+
+def snr_tests_pass(snr: np.ndarray, min_snr_db: float | None) -> np.ndarray:
+    """:func:`snr_test_passes` of every value of ``snr`` (dB) at once."""
+    snr = np.asarray(snr, dtype=np.float64)
+    return np.ones(snr.shape, dtype=bool) if min_snr_db is None else np.isnan(snr) | (snr >= min_snr_db)
 
 
 def clutter_test_passes(contrast_db: float, clutter_over_floor_db: float, min_contrast_db: float | None) -> bool:
     """The clutter test of a peak: passed at ``min_contrast_db`` or more, or where the clutter stands less than
     :data:`REVERBERATION_MARGIN_DB` above the noise floor (it is the noise); NaN contrasts and ``None`` pass,
     a NaN clutter level (no floor) counts as reverberation."""
-    if min_contrast_db is None or math.isnan(contrast_db) or contrast_db >= min_contrast_db:
-        return True
-    return bool(clutter_over_floor_db < REVERBERATION_MARGIN_DB)  # NaN: False
+    return bool(clutter_tests_pass(np.float64(contrast_db), np.float64(clutter_over_floor_db), min_contrast_db))
 
 
-def _passes(value: float, minimum: float | None) -> bool:
-    return minimum is None or math.isnan(value) or value >= minimum
+def clutter_tests_pass(contrast_db: np.ndarray, clutter_over_floor_db: np.ndarray,
+                       min_contrast_db: float | None) -> np.ndarray:
+    """:func:`clutter_test_passes` of every peak at once (dB, arrays of one shape)."""
+    c, over = np.asarray(contrast_db, dtype=np.float64), np.asarray(clutter_over_floor_db, dtype=np.float64)
+    if min_contrast_db is None:
+        return np.ones(c.shape, dtype=bool)
+    return np.isnan(c) | (c >= min_contrast_db) | (over < REVERBERATION_MARGIN_DB)   # a NaN clutter: reverberation

@@ -13,6 +13,7 @@ same rows.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,13 +27,12 @@ from clbeam.constants import (
     SOUND_SPEED_M_S,
 )
 from clbeam.imaging.detection import (
-    annotate_and_gate,
+    contrast_at,
     contrast_windows,
-    local_contrast,
+    gate_peaks,
     noise_floor,
     smoothing_eigenvalues,
-    snr_db,
-    snr_test_passes,
+    snr_tests_pass,
 )
 from clbeam.imaging.geometry import to_earth_frame
 from clbeam.imaging.mlh import (
@@ -41,7 +41,7 @@ from clbeam.imaging.mlh import (
     detection_rows,
     suppress_main_lobe_highlights,
 )
-from clbeam.imaging.postprocess import coherence_peaks, hann_smooth, peak_rows_at
+from clbeam.imaging.postprocess import coherence_peaks, hann_smooth, intensity_db, peak_rows_at
 from clbeam.io.conventions import epoch_seconds
 from clbeam.io.peaks import REFINE_COLUMNS
 from clbeam.io.survey_store import SURVEY_TIME_VARIABLE
@@ -164,23 +164,48 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         image) and the ship's navigation, by decreasing CF.
     """
     floor = None if intensity is None else noise_floor(intensity, cf_smooth)
-    rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options,
-                 _least_intensity(floor, min_snr_db))
+    least = _least_intensity(floor, min_snr_db)
+    if mlh:
+        rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options, least)
+        if intensity is None:
+            return rows
+        keep, tests = _tests(context, cf_smooth, intensity, grid, floor, np.array([r["range_m"] for r in rows]),
+                             np.array([r["angle_deg"] for r in rows]), np.array([r["intensity_db"] for r in rows]),
+                             np.array([r["cf"] for r in rows]), min_snr_db, min_contrast_db)
+        kept = [rows[k] for k in keep.tolist()]
+        for row, values in zip(kept, zip(*(v.tolist() for v in tests.values()))):
+            row.update(zip(tests, values))   # in place: the rows are this call's own
+        return kept
+    peaks = _peaks(context, cf_smooth, intensity, grid, threshold, refine, least)
     if intensity is None:
-        return rows
+        return _table(context, peaks)
+    keep, tests = _tests(context, cf_smooth, intensity, grid, floor, peaks.range_m, peaks.angle_deg,
+                         intensity_db(peaks.intensity), peaks.cf, min_snr_db, min_contrast_db)
+    return _table(context, peaks.take(keep), tests)
+
+
+def _tests(context: PingContext, cf_smooth, intensity, grid: PolarGrid, floor, range_m, angle_deg, level_db, cf,
+           min_snr_db, min_contrast_db) -> tuple[np.ndarray, dict]:
+    """The detection test of peaks at ``range_m``, ``angle_deg`` with intensities ``level_db`` (dB) and smoothed
+    CFs ``cf`` (:func:`clbeam.imaging.detection.gate_peaks`): the kept ones' indices and their ``snr_db``,
+    ``contrast_db`` and ``pfa`` columns.  The clutter is measured about the peaks the SNR test keeps only:
+    the others leave the table whatever their contrast (a noise-free ping's thousands of maxima on its
+    rounding are a hundred above the floor)."""
     band = context.band_hz
     lam = smoothing_eigenvalues(float(np.median(np.diff(grid.ranges_m))) if grid.shape[1] > 1 else 1.0,
                                 float(band[1] - band[0]), context.sound_speed_m_s)
     window, guard = contrast_windows(band, context.array_width_m, context.sound_speed_m_s)
-    # the clutter about the rows the SNR test keeps only: the others leave the table whatever their contrast
-    # (a noise-free ping's thousands of maxima on its rounding are a hundred above the floor)
-    measured = [k for k, snr in enumerate(snr_db(rows, floor)) if snr_test_passes(snr, min_snr_db)]
-    echo, clutter = np.full(len(rows), np.nan), np.full(len(rows), np.nan)
-    if measured:
-        echo[measured], clutter[measured] = local_contrast(intensity, grid.ranges_m, grid.angles_deg,
-                                                           [rows[k] for k in measured], window=window, guard=guard)
-    return annotate_and_gate(rows, floor=floor, n_channels=context.n_channels, eigenvalues=lam,
-                             min_snr_db=min_snr_db, contrast=(echo, clutter), min_contrast_db=min_contrast_db)
+    floor_db = 10 * math.log10(floor) if floor > 0 and math.isfinite(floor) else math.nan
+    measured = np.flatnonzero(snr_tests_pass(np.asarray(level_db, dtype=np.float64) - floor_db, min_snr_db))
+    echo, clutter = np.full(len(level_db), np.nan), np.full(len(level_db), np.nan)
+    if measured.size:
+        echo[measured], clutter[measured] = contrast_at(intensity, grid.ranges_m, grid.angles_deg,
+                                                        np.asarray(range_m)[measured], np.asarray(angle_deg)[measured],
+                                                        window=window, guard=guard)
+    keep, snr, contrast, pfa = gate_peaks(level_db, cf, floor=floor, echo_db=echo, clutter_db=clutter,
+                                          n_channels=context.n_channels, eigenvalues=lam, min_snr_db=min_snr_db,
+                                          min_contrast_db=min_contrast_db)
+    return keep, {"snr_db": snr, "contrast_db": contrast, "pfa": pfa}
 
 
 #: the relative margin below the SNR test's least intensity within which a peak still gets a row (the test
@@ -195,39 +220,62 @@ def _least_intensity(floor: float | None, min_snr_db: float | None) -> float:
     return float(floor * 10 ** (min_snr_db / 10) * (1 - SNR_PREFILTER_MARGIN))
 
 
+@dataclass(frozen=True)
+class _Peaks:
+    """A ping's peaks as columns: position (m, degree from the grid centre), smoothed CF, intensity
+    (NaN: none) and, refined, the grid cells' columns (:data:`clbeam.io.peaks.REFINE_COLUMNS`)."""
+
+    range_m: np.ndarray
+    angle_deg: np.ndarray
+    cf: np.ndarray
+    intensity: np.ndarray
+    cells: dict
+
+    def take(self, index: np.ndarray) -> "_Peaks":
+        return _Peaks(self.range_m[index], self.angle_deg[index], self.cf[index], self.intensity[index],
+                      {name: values[index] for name, values in self.cells.items()})
+
+
+def _peaks(context: PingContext, cf_smooth, intensity, grid: PolarGrid, threshold: float, refine,
+           least_intensity: float = 0.0) -> _Peaks:
+    """The coherence peaks of a ping (at their refined points with ``refine``) before the detection test; a
+    peak less intense than ``least_intensity`` (one the SNR test drops for sure: a noise-free ping has
+    thousands on its rounding) left out."""
+    peaks = coherence_peaks(cf_smooth, threshold)
+    if refine is not None:
+        refined = refine(peaks)
+        refined = refined.take(np.flatnonzero(~(refined.intensity < least_intensity)))
+        ia, ir = ((refined.cell[:, 0], refined.cell[:, 1]) if len(refined.range_m)
+                  else (np.zeros(0, int), np.zeros(0, int)))
+        cells = {"cell_range_m": grid.ranges_m[ir], "cell_angle_deg": grid.angles_deg[ia],
+                 "cell_cf": cf_smooth[ia, ir].astype(np.float64), "cell_peaks": np.asarray(refined.n_cells)}
+        return _Peaks(np.asarray(refined.range_m), np.asarray(refined.angle_deg), np.asarray(refined.cf_smooth),
+                      np.asarray(refined.intensity), cells)
+    if intensity is not None and least_intensity > 0:
+        peaks = peaks[~(intensity[peaks[:, 0], peaks[:, 1]] < least_intensity)]
+    ia, ir = peaks[:, 0], peaks[:, 1]
+    return _Peaks(grid.ranges_m[ir], grid.angles_deg[ia], cf_smooth[ia, ir],
+                  intensity[ia, ir] if intensity is not None else np.full(len(peaks), np.nan), {})
+
+
+def _table(context: PingContext, peaks: _Peaks, tests: dict | None = None) -> list[dict]:
+    """The rows of ``peaks`` (their cells' columns, then ``tests``'s, appended)."""
+    return peak_rows_at(context.index, peaks.range_m, peaks.angle_deg, context.centre_yz_m, peaks.cf,
+                        peaks.intensity, context.navigation, extra={**peaks.cells, **(tests or {})})
+
+
 def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options,
           least_intensity: float = 0.0) -> list[dict]:
     """The rows of :func:`peak_rows` before the detection test; a peak less intense than ``least_intensity``
     (one the SNR test drops for sure: a noise-free ping has thousands on its rounding) gets none."""
+    if not mlh:
+        return _table(context, _peaks(context, cf_smooth, intensity, grid, threshold, refine, least_intensity))
     peaks = coherence_peaks(cf_smooth, threshold)
-    nav = context.navigation
-    if mlh:
-        options = {**arc_tolerances(grid, band_hz=context.band_hz, array_width_m=context.array_width_m,
-                                    sound_speed_m_s=context.sound_speed_m_s), "source_yz_m": context.source_yz_m,
-                   **mlh_options}
-        dets = suppress_main_lobe_highlights(peaks, cf_smooth, grid, centre_yz_m=context.centre_yz_m, **options)
-        return detection_rows(dets, context.index, intensity, context.centre_yz_m, nav, position=position)
-    if refine is not None:
-        refined = refine(peaks)
-        return _refined_rows(context, refined.take(np.flatnonzero(~(refined.intensity < least_intensity))),
-                             cf_smooth, grid)
-    if intensity is not None and least_intensity > 0:
-        peaks = peaks[~(intensity[peaks[:, 0], peaks[:, 1]] < least_intensity)]
-    ia, ir = peaks[:, 0], peaks[:, 1]
-    return peak_rows_at(context.index, grid.ranges_m[ir], grid.angles_deg[ia], context.centre_yz_m, cf_smooth[ia, ir],
-                        intensity[ia, ir] if intensity is not None else np.full(len(peaks), np.nan), nav)
-
-
-def _refined_rows(context: PingContext, refined, cf_smooth: np.ndarray, grid: PolarGrid) -> list[dict]:
-    """Peak rows at refined points, with the grid cell each came from."""
-    rows = peak_rows_at(context.index, refined.range_m, refined.angle_deg, context.centre_yz_m, refined.cf_smooth,
-                        refined.intensity, context.navigation)
-    ia, ir = (refined.cell[:, 0], refined.cell[:, 1]) if len(rows) else (np.zeros(0, int), np.zeros(0, int))
-    cells = zip(grid.ranges_m[ir].tolist(), grid.angles_deg[ia].tolist(), cf_smooth[ia, ir].astype(np.float64).tolist(),
-                np.asarray(refined.n_cells).tolist())
-    for row, (r, a, cf, n) in zip(rows, cells):
-        row.update(cell_range_m=r, cell_angle_deg=a, cell_cf=cf, cell_peaks=int(n))
-    return rows
+    options = {**arc_tolerances(grid, band_hz=context.band_hz, array_width_m=context.array_width_m,
+                                sound_speed_m_s=context.sound_speed_m_s), "source_yz_m": context.source_yz_m,
+               **mlh_options}
+    dets = suppress_main_lobe_highlights(peaks, cf_smooth, grid, centre_yz_m=context.centre_yz_m, **options)
+    return detection_rows(dets, context.index, intensity, context.centre_yz_m, context.navigation, position=position)
 
 
 def _value(ds, name: str, i: int, default=None):

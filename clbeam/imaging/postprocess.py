@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
+from itertools import repeat
 
 import numpy as np
 
@@ -301,30 +302,40 @@ def peak_row(ping: int, range_m: float, angle_deg: float, centre_yz_m, cf: float
     return peak_rows_at(ping, [range_m], [angle_deg], centre_yz_m, [cf], [intensity], navigation)[0]
 
 
-def peak_rows_at(ping: int, range_m, angle_deg, centre_yz_m, cf, intensity, navigation: dict | None = None) -> list[dict]:
+def peak_rows_at(ping: int, range_m, angle_deg, centre_yz_m, cf, intensity, navigation: dict | None = None,
+                 extra: dict | None = None) -> list[dict]:
     """:func:`peak_row` of every entry of ``range_m``, ``angle_deg``, ``cf`` and ``intensity`` (arrays of one
     length; the rest as :func:`peak_row`), their positions computed for all entries at once (the one builder
-    of the rows: :func:`peak_row` is this for one peak)."""
+    of the rows: :func:`peak_row` is this for one peak); ``extra`` (column name: values, one a row) appends
+    columns to each row, in its order."""
     r, a = np.asarray(range_m, dtype=np.float64).ravel(), np.asarray(angle_deg, dtype=np.float64).ravel()
     c, inten = np.asarray(cf, dtype=np.float64).ravel(), np.asarray(intensity, dtype=np.float64).ravel()
     nav = {k: float(v) for k, v in (navigation or {}).items() if v is not None and np.isfinite(v)}
     th = np.deg2rad(a)
     y, z = centre_yz_m[0] + r * np.sin(th), centre_yz_m[1] + r * np.cos(th)
     depth = z + nav.get("draft_m", 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        level = np.where(inten > 0, 10 * np.log10(np.where(inten > 0, inten, 1.0)), -np.inf)
     common = {"centre_y_m": float(centre_yz_m[0]), "centre_z_m": float(centre_yz_m[1])}
     if "time_s" in nav:
         common["time_s"] = nav["time_s"]
     common.update({column: nav[key] for key, column in (("latitude", "ping_latitude_deg"),
                                                          ("longitude", "ping_longitude_deg"),
                                                          ("heading", "heading_deg")) if key in nav})
-    columns = [r.tolist(), a.tolist(), y.tolist(), z.tolist(), depth.tolist(), c.tolist(), level.tolist()]
-    names = ("range_m", "angle_deg", "y_m", "z_m", "depth_m", "cf", "intensity_db")
-    rows = [{"ping": int(ping), **dict(zip(names, values)), **common} for values in zip(*columns)]
-    if {"latitude", "longitude", "heading"} <= nav.keys() and rows:
-        lat, lon = geodesic_direct(nav["latitude"], nav["longitude"], nav["heading"] + np.where(y >= 0, 90.0, -90.0),
-                                   np.abs(y))
-        for row, la, lo in zip(rows, lat.tolist(), lon.tolist()):
-            row["peak_latitude_deg"], row["peak_longitude_deg"] = la, lo
-    return rows
+    per_peak = {"range_m": r, "angle_deg": a, "y_m": y, "z_m": z, "depth_m": depth, "cf": c,
+                "intensity_db": intensity_db(inten)}
+    position = {}
+    if {"latitude", "longitude", "heading"} <= nav.keys() and r.size:
+        position["peak_latitude_deg"], position["peak_longitude_deg"] = geodesic_direct(
+            nav["latitude"], nav["longitude"], nav["heading"] + np.where(y >= 0, 90.0, -90.0), np.abs(y))
+    extra = extra or {}
+    # one dict a peak, its keys in the tables' order: the peak's, the ping's, its position's, the extra ones
+    names = ("ping", *per_peak, *common, *position, *extra)
+    values = (repeat(int(ping)), *(v.tolist() for v in per_peak.values()), *(repeat(v) for v in common.values()),
+              *(v.tolist() for v in position.values()), *(np.asarray(v).tolist() for v in extra.values()))
+    return list(map(dict, map(zip, repeat(names), zip(*values))))
+
+
+def intensity_db(intensity) -> np.ndarray:
+    """``10 log10`` of an intensity (dB re its unit; -inf at 0 and below), float64."""
+    inten = np.asarray(intensity, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(inten > 0, 10 * np.log10(np.where(inten > 0, inten, 1.0)), -np.inf)

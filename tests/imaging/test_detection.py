@@ -114,6 +114,36 @@ def test_saddlepoint_tail_of_a_sum_of_exponentials_against_closed_forms():
     np.testing.assert_allclose(exponential_sum_sf(y, lam), exact, rtol=0.05)
 
 
+def test_saddlepoint_solved_to_float64_against_the_closed_form_lugannani_rice():
+    """Newton's steps onto the saddlepoint against its closed form for one exponential (``s = 1 - 1/y``)
+    and for two equal ones (``s = 1/a - 2/y``), from 0.1 to 300 times the mean and at the mean.  The
+    exponent ``s y - K(s)`` is stationary in ``s`` at the root, so a root off by an ulp moves the value by
+    rounding only: ~1e-16 of ``y`` <= 300, ~1e-13 of ``p``; but ``y`` a fraction ``d`` off the mean,
+    ``1/u - 1/w`` cancels terms ``1/d`` times larger than itself, each ``eps / d`` off (``s`` ~ ``d``), so
+    ``eps / d^2``: 1e-11 relative for ``d`` >= 0.1, 1e-9 (ten times ``eps / d^2``) down to ``d`` = 2e-3."""
+    from scipy.special import ndtr
+
+    from clbeam.imaging.detection import exponential_sum_sf
+
+    def lugannani_rice(s, w2, u):
+        w = np.sign(s) * np.sqrt(w2)
+        return ndtr(-w) + np.exp(-0.5 * w2) / np.sqrt(2 * np.pi) * (1 / u - 1 / w)
+
+    far = np.r_[np.geomspace(0.1, 0.9, 100), np.geomspace(1.1, 300.0, 300)]
+    near = np.r_[np.geomspace(0.98, 0.998, 100), np.geomspace(1.002, 1.02, 100)]
+    for y, rtol in ((far, 1e-11), (near, 1e-9)):
+        s = 1 - 1 / y   # one exponential: K = -log(1 - s), K'' = 1 / (1 - s)^2
+        np.testing.assert_allclose(exponential_sum_sf(y, np.array([1.0])),
+                                   lugannani_rice(s, 2 * (y - 1 - np.log(y)), y - 1), rtol=rtol, atol=0)
+        a = 0.5   # two of 0.5: K = -2 log(1 - a s), K'' = 2 a^2 / (1 - a s)^2 = y^2 / 2
+        s = 1 / a - 2 / y
+        np.testing.assert_allclose(exponential_sum_sf(y, np.array([a, a])),
+                                   lugannani_rice(s, 2 * (s * y + 2 * np.log(2 * a / y)), s * y / np.sqrt(2)),
+                                   rtol=rtol, atol=0)
+    # at the mean: the limit of the two terms
+    assert exponential_sum_sf(np.array([1.0]), np.array([1.0]))[0] == pytest.approx(0.5 - 2 / (6 * np.sqrt(2 * np.pi)))
+
+
 def _clutter_grid():
     """The paper's cell size, 0.2 m x 0.1 degree, over 100 m x 40 degrees, and the SBP29's clutter window and
     guard (+-10.7 m and +-6.6 degrees; +-1.07 m and +-2.2 degrees)."""
@@ -397,3 +427,54 @@ def test_box_maxima_of_one_width_and_of_many_equal_a_maximum_filter():
                 boxes = [x[a - half_a:a + half_a + 1, r:r + n] for a, r, n in zip(e_a, e_r, w)]
                 want = np.r_[ref, [b[np.isfinite(b)].max() if np.isfinite(b).any() else np.nan for b in boxes]]
                 np.testing.assert_array_equal(box_maxima(x, both_a, both_r), want)
+
+
+@pytest.mark.parametrize("many", [False, True], ids=["box-by-box", "table"])
+def test_peak_rows_equal_each_peaks_own_row_tests_and_probability(monkeypatch, many):
+    """peak_rows (columns for all peaks, the contrast of the peaks the SNR test keeps, the tests on arrays)
+    against each peak on its own: its row (peak_row), its SNR over the floor, its echo and clutter by masks
+    over the image, the two tests written out, its false-alarm probability alone; a noisy image with
+    echoes, reverberation patches and NaN cells, the clutter summed box by box and from the table.  The same
+    peaks in the same order with the same values (the clutter's float64 rounding aside: 1e-9 dB)."""
+    import clbeam.imaging.detection as detection
+    from clbeam.imaging.peaks import PingContext, peak_rows
+    from clbeam.imaging.postprocess import coherence_peaks, peak_row
+
+    monkeypatch.setattr(detection, "TABLE_CELLS_RATIO", 0.0 if many else np.inf)
+    rng = np.random.default_rng(23)
+    g = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, min_range_m=50.0, max_range_m=110.0,
+                          angles_deg=(-15.0, 15.0))
+    shape = g.shape
+    cf = np.clip(rng.normal(0.2, 0.12, shape), 0, 1).astype(np.float32)
+    x = rng.exponential(1.0, shape).astype(np.float32)
+    x[100:200, 50:150] *= rng.choice([1.0, 30.0, 300.0])                # reverberation
+    x[:, :10] = np.nan
+    x[rng.random(shape) < 0.01] = np.nan
+    x[rng.random(shape) < 0.002] *= 1e3                                  # echoes
+    context = PingContext(index=3, centre_yz_m=(0.5, 1.0), n_channels=24, latitude_deg=50.1, longitude_deg=-4.2,
+                          heading_deg=80.0)
+    got = peak_rows(context, cf, x, g, threshold=0.35, min_snr_db=6.0, min_contrast_db=12.0)
+
+    floor = noise_floor(x, cf)
+    floor_db = 10 * math.log10(floor)
+    window, guard = contrast_windows(context.band_hz, context.array_width_m, context.sound_speed_m_s)
+    lam = smoothing_eigenvalues(0.2, float(np.diff(context.band_hz)[0]), context.sound_speed_m_s)
+    cells = coherence_peaks(cf, 0.35)
+    want = []
+    for a, r in cells:
+        row = peak_row(3, g.ranges_m[r], g.angles_deg[a], (0.5, 1.0), float(cf[a, r]), float(x[a, r]), context.navigation)
+        snr = row["intensity_db"] - floor_db
+        if not (math.isnan(snr) or snr >= 6.0):
+            continue
+        (echo,), (clutter,) = brute_force_contrast(x, g.ranges_m, g.angles_deg, [a], [r], window, guard)
+        contrast = echo - clutter
+        if not (math.isnan(contrast) or contrast >= 12.0 or clutter - floor_db < 3.0):
+            continue
+        row.update(snr_db=snr, contrast_db=contrast, pfa=float(false_alarm_probability(row["cf"], 24, lam)))
+        want.append(row)
+    assert 20 < len(want) < len(cells) and len(got) == len(want)
+    for mine, theirs in zip(got, want):
+        assert list(mine) == list(theirs)
+        for key, value in theirs.items():
+            assert mine[key] == (pytest.approx(value, abs=1e-9, nan_ok=True) if key == "contrast_db"
+                                 else pytest.approx(value, rel=1e-12, nan_ok=True)), key
