@@ -13,11 +13,6 @@ from clbeam.imaging.engine.clsupport import pyopencl
 
 #: bins per lane (each turned from the previous by one complex product)
 BINS = 8
-#: lanes (bin columns) per work-item on CPUs and GPUs, as the delay-and-sum's layouts
-CPU_LANES, GPU_LANES = 16, 1
-#: work-items per work-group along bins, at most (clamped to the kernel's limit on the device): CPUs want
-#: small groups, GPUs full ones
-CPU_LOCAL, GPU_LOCAL = 1, 64
 
 
 class ClSteering:
@@ -27,14 +22,14 @@ class ClSteering:
     Parameters
     ----------
     engine : OpenCLEngine
-        Its context, queue, buffers, precision and program cache are used.
+        Its context, queue, buffers, precision, program cache and layout (vector lanes, work-items per
+        group: bin columns here, angles in the delay-and-sum) are used.
     """
 
     def __init__(self, engine):
         self.engine = engine
         cl = pyopencl()
-        is_cpu = bool(engine.device.type & cl.device_type.CPU)
-        self.vec, local = (CPU_LANES, CPU_LOCAL) if is_cpu else (GPU_LANES, GPU_LOCAL)
+        self.vec, local = engine.vec, engine.local
         self.kernel = engine.build("fd_steer", [f"-DBINS={BINS}", f"-DVEC={self.vec}"])
         limit = self.kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, engine.device)
         self.local = max(1, min(local, int(limit)))
