@@ -478,3 +478,17 @@ def test_peak_rows_equal_each_peaks_own_row_tests_and_probability(monkeypatch, m
         for key, value in theirs.items():
             assert mine[key] == (pytest.approx(value, abs=1e-9, nan_ok=True) if key == "contrast_db"
                                  else pytest.approx(value, rel=1e-12, nan_ok=True)), key
+
+
+def test_the_floors_quantile_is_numpys_bit_for_bit():
+    """The noise floor's quantile (one selection and a minimum) against numpy.quantile itself: sizes from
+    one value up, ties, float32 and float64, quantiles at 0, 1, 0.1 and anywhere; the same float."""
+    from clbeam.imaging.detection import quantile
+
+    rng = np.random.default_rng(24)
+    for trial in range(2000):
+        n = int(rng.integers(1, 3000))
+        values = rng.exponential(1.0, n) if trial % 3 else rng.integers(0, 5, n)
+        values = values.astype(np.float32 if trial % 2 else np.float64)
+        q = float(rng.choice([0.0, 1.0, 0.1, rng.random()]))
+        assert quantile(values, q) == float(np.quantile(values, q))
