@@ -82,7 +82,7 @@ LINE_COLUMNS = ("line", "kind", "n_pings", "first_ping", "last_ping", "length_m"
                 "burial_resolved", "specular")
 """Columns of every line row (``kind`` a string; ``line``, ``n_pings``, the pings and ``burial_resolved`` integers)."""
 LINE_INTEGERS = ("line", "n_pings", "first_ping", "last_ping", "burial_resolved", "specular")
-LINE_KINDS = ("pipeline", "seabed", "water", "subbottom", "seabed-nadir", "subbottom-nadir", "unknown")
+LINE_KINDS = ("pipeline", "water", "subbottom", "seabed-nadir", "subbottom-nadir", "unknown")
 """Kinds of a line (:func:`clbeam.survey.line_products.line_kind`), in the order of their stored codes."""
 
 

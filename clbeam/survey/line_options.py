@@ -39,8 +39,14 @@ class LineOptions:
         lines as good per km of survey line, :mod:`clbeam.survey.line_score`;
         the default 4 is set from clutter-only simulated surveys, where
         clutter is not independent from ping to ping: ``docs/lines.md``).
-    min_burial_m, max_burial_m : float
-        Burial range of the kind ``pipeline`` (m).
+    min_burial_m : float
+        Burial below which a line counts as not buried (m): a smooth
+        pipe's specular correction applies to buried lines only, and a
+        line at nadir buried deeper is a horizon's echo (``subbottom-nadir``).
+    max_burial_m, max_exposure_m : float
+        A ``pipeline`` lies from ``max_exposure_m`` above the seabed (its
+        axis: a radius for an exposed pipe, up to a metre more for a free
+        span) to ``max_burial_m`` below it (m).
     burial_resolution_m : float
         Largest standard error of a line's burial that counts as measured (m).
     nadir_angle_deg : float
@@ -75,14 +81,15 @@ class LineOptions:
     min_score: float = 4.0
     min_burial_m: float = 0.5
     max_burial_m: float = 10.0
+    max_exposure_m: float = 1.5
     burial_resolution_m: float = 0.5
     nadir_angle_deg: float = 10.0
     beam_width_deg: float = 4.5
     nominal_spacing_m: float = 8.2
 
     def __post_init__(self):
-        for name in ("across_gate_m", "burial_gate_m", "fit_length_m", "max_burial_m", "burial_resolution_m",
-                     "nominal_spacing_m"):
+        for name in ("across_gate_m", "burial_gate_m", "fit_length_m", "max_burial_m", "max_exposure_m",
+                     "burial_resolution_m", "nominal_spacing_m"):
             v = getattr(self, name)
             require(isinstance(v, numbers.Real) and math.isfinite(v) and v > 0, OptionError,
                     f"line option {name} must be a number > 0, got {v!r}")

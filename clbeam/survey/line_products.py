@@ -472,32 +472,28 @@ def line_kind(burial_m: float, burial_se_m: float, nadir_angle_deg: float, optio
     """The kind of a line from its burial and that burial's standard error (m), and its typical angle from nadir
     (degree).
 
-    A burial with a standard error above ``burial_resolution_m`` is not
-    resolved (near endfire a peak slides metres along its arc): such a line
-    is a ``pipeline`` when its burial is within three standard errors of
-    the pipelines' range ``min_burial_m``-``max_burial_m``, and is judged by
-    its estimate otherwise.  Resolved, the reach shrinks with the standard
-    error, ``3 se * se / burial_resolution_m`` (0.9 m at 0.39 m, 0.06 m at
-    0.1 m; no jump at the resolution): without it a pipe 1 m deep 600 m
-    out, its burial known to 0.3-0.4 m, came out ``seabed`` in one of Line
-    1's five surveys.  No reach within ``nadir_angle_deg`` of nadir, nor
-    for a burial without a standard error (NaN).  Within the reach:
-    ``pipeline``; within ``nadir_angle_deg`` of nadir and not buried:
-    ``seabed-nadir`` (the seabed's specular echo and its pulse's tail),
-    deeper than ``max_burial_m``: ``subbottom-nadir`` (a horizon's); else
-    ``seabed`` (within ``min_burial_m`` of it), ``water`` (above it),
-    ``subbottom`` (deeper than ``max_burial_m``); ``unknown`` without a
-    seabed.
+    A pipeline lies from ``max_exposure_m`` above the seabed (an exposed
+    pipe's axis a radius above it, a free span's up to a metre more) to
+    ``max_burial_m`` below it.  A line is a ``pipeline`` when its burial is
+    within that range, reached by its standard error above it (a line
+    higher than that by more than its error is in the water) and, below
+    it, by three standard errors when the burial is not resolved (above
+    ``burial_resolution_m``: near endfire a peak slides metres along its
+    arc) and ``3 se * se / burial_resolution_m`` when it is (0.9 m at
+    0.39 m, 0.06 m at 0.1 m; no jump at the resolution).  Otherwise
+    ``water`` (above) or ``subbottom`` (deeper).  Within
+    ``nadir_angle_deg`` of nadir a line is never a pipeline: a buried
+    line there cannot be told from a horizon's specular echo and its
+    pulse's tail (``subbottom-nadir``, buried more than ``min_burial_m``;
+    ``seabed-nadir`` otherwise).  A burial without a standard error (NaN)
+    is judged by its estimate; ``unknown`` without a seabed.
     """
     if not math.isfinite(burial_m):
         return "unknown"
-    nadir = nadir_angle_deg <= options.nadir_angle_deg
+    if nadir_angle_deg <= options.nadir_angle_deg:
+        return "subbottom-nadir" if burial_m > options.min_burial_m else "seabed-nadir"
     se = 0.0 if math.isnan(burial_se_m) else burial_se_m  # no error: judged by the estimate
-    reach = 0.0 if nadir else 3 * se * min(1.0, se / options.burial_resolution_m)
-    if options.min_burial_m - reach <= burial_m <= options.max_burial_m + reach:
+    deeper = 3 * se * min(1.0, se / options.burial_resolution_m)
+    if -options.max_exposure_m - se <= burial_m <= options.max_burial_m + deeper:
         return "pipeline"
-    if burial_m > options.max_burial_m:
-        return "subbottom-nadir" if nadir else "subbottom"
-    if nadir:
-        return "seabed-nadir"
-    return "seabed" if burial_m > -options.min_burial_m else "water"
+    return "subbottom" if burial_m > options.max_burial_m else "water"

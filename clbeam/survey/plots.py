@@ -41,7 +41,7 @@ def plot_persistence(path, det_ping, det_y, det_cf, threshold: float) -> Path:
 
 
 #: colour of each line kind on the map
-KIND_COLOURS = {"pipeline": "k", "seabed": "tab:green", "water": "tab:cyan", "subbottom": "tab:brown",
+KIND_COLOURS = {"pipeline": "k", "water": "tab:cyan", "subbottom": "tab:brown",
                 "seabed-nadir": "tab:olive", "subbottom-nadir": "tab:orange", "unknown": "tab:gray"}
 
 

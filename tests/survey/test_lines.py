@@ -241,16 +241,21 @@ def test_bad_line_options_are_refused_in_one_line(kwargs):
 
 
 @pytest.mark.parametrize("burial, error, angle, kind", [
-    (1.0, 0.1, 50.0, "pipeline"), (2.5, 0.2, 30.0, "pipeline"), (0.1, 0.1, 50.0, "seabed"),
-    (-2.0, 0.1, 50.0, "water"), (20.0, 0.1, 50.0, "subbottom"), (20.2, 0.05, 2.0, "subbottom-nadir"),
-    (-1.3, 0.05, 1.0, "seabed-nadir"), (0.0, 0.05, 3.0, "seabed-nadir"), (1.0, 0.05, 3.0, "pipeline"),
-    # unresolved far lines: a pipeline when within three standard errors of 0.5-10 m, else by the estimate
-    (-3.7, 3.3, 76.0, "pipeline"), (4.9, 0.9, 70.0, "pipeline"), (21.1, 1.1, 64.0, "subbottom"),
-    (-6.0, 1.5, 70.0, "water"), (math.nan, math.nan, 40.0, "unknown"),
-    # resolved: a reach of 3 se^2 / 0.5 m below 0.5 m (0.91 m at 0.39 m, 0.24 m at 0.2 m), none at nadir
-    (0.47, 0.39, 70.0, "pipeline"), (-0.40, 0.39, 70.0, "pipeline"), (-0.42, 0.39, 70.0, "seabed"),
-    (0.27, 0.2, 60.0, "pipeline"), (0.25, 0.2, 60.0, "seabed"), (0.47, 0.39, 3.0, "seabed-nadir"),
-    (1.0, math.nan, 40.0, "pipeline"), (0.3, math.nan, 40.0, "seabed"), (-5.0, math.inf, 70.0, "pipeline")])
+    (1.0, 0.1, 50.0, "pipeline"), (2.5, 0.2, 30.0, "pipeline"), (20.0, 0.1, 50.0, "subbottom"),
+    # exposed (the axis a radius above the seabed) and spanning free (up to a metre more): pipelines; higher than
+    # 1.5 m by more than the standard error: in the water
+    (0.1, 0.1, 50.0, "pipeline"), (-0.3, 0.1, 50.0, "pipeline"), (-1.45, 0.05, 40.0, "pipeline"),
+    (-1.7, 0.25, 40.0, "pipeline"), (-1.8, 0.25, 40.0, "water"), (-2.0, 0.1, 50.0, "water"),
+    # at nadir never a pipeline: buried, a horizon's echo; else the seabed's
+    (20.2, 0.05, 2.0, "subbottom-nadir"), (1.0, 0.05, 3.0, "subbottom-nadir"), (-1.3, 0.05, 1.0, "seabed-nadir"),
+    (0.0, 0.05, 3.0, "seabed-nadir"), (0.47, 0.39, 3.0, "seabed-nadir"),
+    # unresolved far lines: within three standard errors below 10 m, one above -1.5 m; else by the estimate
+    (-3.7, 3.3, 76.0, "pipeline"), (4.9, 0.9, 70.0, "pipeline"), (12.6, 0.9, 70.0, "pipeline"),
+    (21.1, 1.1, 64.0, "subbottom"), (-6.0, 1.5, 70.0, "water"), (math.nan, math.nan, 40.0, "unknown"),
+    # resolved: a reach of 3 se^2 / 0.5 m below 10 m (0.91 m at 0.39 m, 0.24 m at 0.2 m)
+    (10.9, 0.39, 70.0, "pipeline"), (10.95, 0.39, 70.0, "subbottom"), (10.2, 0.2, 60.0, "pipeline"),
+    (10.3, 0.2, 60.0, "subbottom"),
+    (1.0, math.nan, 40.0, "pipeline"), (-1.6, math.nan, 40.0, "water"), (-5.0, math.inf, 70.0, "pipeline")])
 def test_line_kind_follows_burial_its_error_and_nadir(burial, error, angle, kind):
     assert line_kind(burial, error, angle, LineOptions()) == kind
 

@@ -262,13 +262,13 @@ def test_a_rough_pipe_along_the_track_or_far_across_it_keeps_its_measured_burial
     assert rows[0]["burial_se_m"] == pytest.approx(np.hypot(0.15, spread / np.sqrt(n - 1)), rel=1e-6)
 
 
-def test_a_seabed_chain_at_a_steady_heading_stays_a_seabed_line():
-    """Scatterers on the seabed lined up at 3 degrees to the track: undecided like a pipe at that heading,
-    but a smooth pipe's echo never lies at or above the seabed, so the line keeps its burial of 0 and its
-    kind (halfway it would read -0.9 +- 0.5 m, a pipeline by its error's reach)."""
+def test_a_chain_on_the_seabed_at_a_steady_heading_is_an_exposed_pipeline_at_its_burial():
+    """Scatterers on the seabed lined up at 3 degrees to the track (a pipe lying exposed on it): undecided like
+    a buried pipe at that heading, but a smooth pipe's echo never lies above the seabed, so the line keeps its
+    burial of 0 (halfway it would read -0.9 +- 0.5 m) and is a pipeline: an exposed one."""
     rows, dz = _steady_pipe(3.0, smooth=False, z_pipe=225.0)
     assert len(rows) == 1 and dz > 1.5
-    assert rows[0]["kind"] == "seabed"
+    assert rows[0]["kind"] == "pipeline"
     assert rows[0]["burial_m"] == pytest.approx(0.0, abs=0.06)
 
 
