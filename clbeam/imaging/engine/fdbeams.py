@@ -278,7 +278,8 @@ def evaluate_at(spectrum: np.ndarray, first_bin: int, length: int, positions: np
             "frequency-domain beams need uniformly spaced ranges")
     czt = CZT(n_bin, m, w=np.exp(2j * np.pi * step / length), a=np.exp(-2j * np.pi * x[0] / length))
     carrier = np.exp(2j * np.pi * ((first_bin * x / length) % 1.0))
-    return czt(spectrum, axis=-1) * carrier / length
+    with scipy.fft.set_workers(WORKERS):          # the transform's FFTs on every core
+        return czt(spectrum, axis=-1) * carrier / length
 
 
 def frequency_beam_sums(inp: BeamformInput, grid: PolarGrid, *, time_domain, steer=steer_numpy,

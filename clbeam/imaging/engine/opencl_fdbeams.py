@@ -47,7 +47,8 @@ class ClSteering:
         require(2 * BINS * stride * max(n_chan, n_beam) < 2**31, GridError,
                 f"{n_bin} bins x {max(n_chan, n_beam)} channels or beams exceed the kernel's indexing")
         n_pad = BINS * stride
-        spec = np.zeros((n_chan, 2, n_pad), dtype=real)
+        spec = np.empty((n_chan, 2, n_pad), dtype=real)
+        spec[:, :, n_bin:] = 0
         spec[:, 0, :n_bin], spec[:, 1, :n_bin] = spectra.real, spectra.imag
         d = np.asarray(delays_cycles, dtype=np.float64)
         turn = 2 * np.pi * np.mod(stride * d, 1.0)
@@ -59,4 +60,6 @@ class ClSteering:
                     np.int32(first_bin), out_buf)
         out = np.empty((n_beam, 2, n_pad), dtype=real)
         pyopencl().enqueue_copy(eng.queue, out, out_buf)
-        return out[:, 0, :n_bin] + 1j * out[:, 1, :n_bin].astype(np.float64)
+        result = np.empty((n_beam, n_bin), dtype=np.complex128)
+        result.real, result.imag = out[:, 0, :n_bin], out[:, 1, :n_bin]
+        return result
