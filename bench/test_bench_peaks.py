@@ -11,6 +11,8 @@ What is timed:
   clutter measured: the stage's worst case at that count): regional maxima, noise floor, clutter test,
   rows; ``refined`` adds the sub-cell refinement of every maximum (:func:`clbeam.imaging.subcell.subcell_peaks`
   on 64 channels of band-limited noise, linear interpolation, float32 OpenCL on the default device).
+  Ten maxima have their clutter summed box by box; a thousand and more from the summed-area table of the
+  band they cover, their echoes from sliding maxima along range (docs/bench.md, "The peak stage").
 - ``test_readback``: one ``engine.beamform`` of the paper grid (intensity and CF, every cell directly, and
   beam-sampled) on a profiling engine; ``extra_info`` holds the bytes read back, their copies' device time
   and the throughput (GB/s).

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -163,10 +165,9 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         :data:`clbeam.io.peaks.PEAK_COLUMNS`, ``snr_db``, ``contrast_db`` and ``pfa`` (with an intensity
         image) and the ship's navigation, by decreasing CF.
     """
-    floor = None if intensity is None else noise_floor(intensity, cf_smooth)
-    least = _least_intensity(floor, min_snr_db)
     if mlh:
-        rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options, least)
+        floor = None if intensity is None else noise_floor(intensity, cf_smooth)
+        rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options)
         if intensity is None:
             return rows
         keep, tests = _tests(context, cf_smooth, intensity, grid, floor, np.array([r["range_m"] for r in rows]),
@@ -176,7 +177,8 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         for row, values in zip(kept, zip(*(v.tolist() for v in tests.values()))):
             row.update(zip(tests, values))   # in place: the rows are this call's own
         return kept
-    peaks = _peaks(context, cf_smooth, intensity, grid, threshold, refine, least)
+    cells, floor = _maxima_and_floor(cf_smooth, intensity, threshold)
+    peaks = _peaks(context, cf_smooth, intensity, grid, cells, refine, _least_intensity(floor, min_snr_db))
     if intensity is None:
         return _table(context, peaks)
     keep, tests = _tests(context, cf_smooth, intensity, grid, floor, peaks.range_m, peaks.angle_deg,
@@ -236,12 +238,24 @@ class _Peaks:
                       {name: values[index] for name, values in self.cells.items()})
 
 
-def _peaks(context: PingContext, cf_smooth, intensity, grid: PolarGrid, threshold: float, refine,
+def _maxima_and_floor(cf_smooth: np.ndarray, intensity: np.ndarray | None, threshold: float) -> tuple:
+    """:func:`~clbeam.imaging.postprocess.coherence_peaks` and the noise floor (``None`` without an
+    intensity), side by side where there are two CPUs (passes over the whole image each; NumPy frees the
+    GIL in them)."""
+    if intensity is None:
+        return coherence_peaks(cf_smooth, threshold), None
+    if len(os.sched_getaffinity(0)) < 2:
+        return coherence_peaks(cf_smooth, threshold), noise_floor(intensity, cf_smooth)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        floor = pool.submit(noise_floor, intensity, cf_smooth)
+        return coherence_peaks(cf_smooth, threshold), floor.result()
+
+
+def _peaks(context: PingContext, cf_smooth, intensity, grid: PolarGrid, peaks: np.ndarray, refine,
            least_intensity: float = 0.0) -> _Peaks:
-    """The coherence peaks of a ping (at their refined points with ``refine``) before the detection test; a
-    peak less intense than ``least_intensity`` (one the SNR test drops for sure: a noise-free ping has
-    thousands on its rounding) left out."""
-    peaks = coherence_peaks(cf_smooth, threshold)
+    """The coherence peaks ``peaks`` (``(n, 2)`` angle and range indices) of a ping (at their refined points
+    with ``refine``) before the detection test; a peak less intense than ``least_intensity`` (one the SNR
+    test drops for sure: a noise-free ping has thousands on its rounding) left out."""
     if refine is not None:
         refined = refine(peaks)
         refined = refined.take(np.flatnonzero(~(refined.intensity < least_intensity)))
@@ -268,9 +282,9 @@ def _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine,
           least_intensity: float = 0.0) -> list[dict]:
     """The rows of :func:`peak_rows` before the detection test; a peak less intense than ``least_intensity``
     (one the SNR test drops for sure: a noise-free ping has thousands on its rounding) gets none."""
-    if not mlh:
-        return _table(context, _peaks(context, cf_smooth, intensity, grid, threshold, refine, least_intensity))
     peaks = coherence_peaks(cf_smooth, threshold)
+    if not mlh:
+        return _table(context, _peaks(context, cf_smooth, intensity, grid, peaks, refine, least_intensity))
     options = {**arc_tolerances(grid, band_hz=context.band_hz, array_width_m=context.array_width_m,
                                 sound_speed_m_s=context.sound_speed_m_s), "source_yz_m": context.source_yz_m,
                **mlh_options}
