@@ -49,6 +49,7 @@ FAMILY_PINGS = 40
 #: the targets of the validation summary: on its line over this share of its detectable pings, position RMS and
 #: burial error within these (m), pipelines up to this angle from nadir (degree)
 ON_LINE_TARGET, POSITION_TARGET_M, BURIAL_TARGET_M, NADIR_LIMIT_DEG = 0.9, 0.5, 0.5, 60.0
+CHANCE_NOTE = "15 and 30 m to either side"
 
 
 def load_spec(spec: str):
@@ -85,9 +86,12 @@ def family_specs(choice: str) -> list:
 
 
 def split_summary(split: str, scored: list, clutter_km: float, clutter_false: int) -> list:
-    """Lines of text: a split's pipelines up to :data:`NADIR_LIMIT_DEG` against the targets, and its false
-    pipeline lines per km over its clutter-only surveys; ``scored``: every target row of the split."""
+    """Lines of text: a split's pipelines up to :data:`NADIR_LIMIT_DEG` against the targets, those whose
+    detectable pings are no more than chance gives (``seen``, :mod:`clbeam.evaluation.line_truth`) named, and
+    its false pipeline lines per km over its clutter-only surveys; ``scored``: every target row of the split."""
     rows = [r for r in scored if not r["nadir_deg"] > NADIR_LIMIT_DEG and r["detectable_pings"] > 0]
+    unseen = [f"{r.get('scene', '')} {r['target']} ({r['detectable_pings']} pings, {r['chance_pings']:.0f} at the copies)"
+              for r in rows if not r["seen"]]
     if not rows:
         return [f"{split}: no pipeline within {NADIR_LIMIT_DEG:g} degrees of nadir was detectable"]
     on = np.array([r["on_line_fraction"] >= ON_LINE_TARGET for r in rows])
@@ -102,6 +106,9 @@ def split_summary(split: str, scored: list, clutter_km: float, clutter_false: in
            f"burial within {BURIAL_TARGET_M} m {np.sum(np.abs(bur) <= BURIAL_TARGET_M)} "
            f"({100 * np.mean(np.abs(bur) <= BURIAL_TARGET_M):.0f} %), within two reported standard errors "
            f"{covered.sum()} ({100 * covered.mean():.0f} %, nominal 95 %)"]
+    if unseen:
+        out.append(f"{split}: of these, {len(unseen)} with no more pings with a detection near them than their "
+                   f"copies {CHANCE_NOTE} (their detectable pings are mostly the clutter's): " + ", ".join(unseen))
     if clutter_km > 0:
         out.append(f"{split}: {clutter_false} false pipeline line(s) over {clutter_km:.2f} km of clutter-only survey "
                    f"({clutter_false / clutter_km:.2f} per km)")
@@ -138,7 +145,8 @@ def scene_rows(name: str, products, nc: Path, scored=None) -> tuple[list, list]:
     rows, summary = scored
     out, burials = [], []
     for r in rows:
-        out.append(f"| {name} | {r['target']} | {r['detectable_pings']} | {r['pings_on_line']} "
+        target = r["target"] + ("" if r["seen"] else " (at chance)")
+        out.append(f"| {name} | {target} | {r['detectable_pings']} | {r['pings_on_line']} "
                    f"({100 * r['on_line_fraction']:.0f} %) | {r['fragments']} | {r['position_rms_m']:.2f} | "
                    f"{r['burial_error_m']:+.2f} | {summary['false_lines']} |")
         burials.append((r["target"], r["burial_error_m"], r["burial_se_m"]))
@@ -237,6 +245,8 @@ def main(argv=None) -> None:
         split = split_of(spec)
         res, nc, out, opts = survey_scene(spec, args.work, LineOptions())
         scored = score_survey(res.products, [nc])
+        for r in scored[0] if scored is not None else ():
+            r["scene"] = spec
         rows, scene_burials = scene_rows(spec, res.products, nc, scored)
         tables[split] += rows
         if scored is not None:

@@ -19,6 +19,16 @@ or any pipe near broadside) or the image of its point nearest the source
 at a heading ``a`` to the ping's plane lies ``y (1 - cos^2 a)`` nearer the
 track, the main-lobe arcs of Holland et al. 2024); the errors are taken to
 the nearer of the two.
+* **seen above chance**: whether the target's detectable pings are more
+  than the clutter gives any place: the same count at copies of the target
+  shifted across the track (:data:`CHANCE_OFFSETS_M`) sets the chance rate
+  of a ping, and the target is seen when its count is improbable under it
+  (binomial tail below :data:`SEEN_P_VALUE`).  In dense clutter a pipe the
+  imaging does not show still has detections within ``match_m`` in most
+  pings, and its detectable pings are mostly the clutter's; where the
+  clutter is that dense a pipe that is seen can fail the test too (its
+  line found by its continuity), so the test names targets, it does not
+  drop them;
 * **fragments**: ``pipeline`` lines that pass within ``match_m`` of it in
   at least three pings;
 * the line's **position error** (RMS of its cross-track offset minus the
@@ -35,9 +45,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import binom
 
 #: distance across the track within which a detection or a line is on a target (m)
 MATCH_M = 2.0
+#: cross-track shifts of a target's copies that measure the chance of a detection near it (m): beyond the
+#: widest smear of a pipe's echoes, within the clutter around it
+CHANCE_OFFSETS_M = (-30.0, -15.0, 15.0, 30.0)
+#: a target whose detectable pings have a binomial tail under the chance rate below this is seen above chance
+SEEN_P_VALUE = 1e-3
 
 
 @dataclass
@@ -140,7 +156,8 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
         Per target: ``target``, ``detectable_pings``, ``pings_on_line``,
         ``on_line_fraction``, ``fragments``, ``line`` (-1: none),
         ``position_rms_m``, ``burial_error_m``, ``burial_se_m`` (the line's own standard error),
-        ``nadir_deg`` (the target's median angle from nadir); and ``false_lines``,
+        ``nadir_deg`` (the target's median angle from nadir), ``chance_pings`` and ``seen`` (detectable pings at
+        shifted copies of the target, and whether its own count is above that chance); and ``false_lines``,
         ``false_lines_per_km``, ``track_km``.
     """
     pipes = [k for k, r in enumerate(lines.rows) if r["kind"] == "pipeline"]
@@ -153,6 +170,7 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
     for t, name in enumerate(truth.names):
         hit = truth.distance(det_ping, det_y, t) <= match_m
         detectable = np.unique(det_ping[hit])
+        chance, seen = _above_chance(truth, det_ping, det_y, t, detectable.size, match_m)
         cover = {k: np.intersect1d(near[k, t], detectable).size for k in pipes}
         best = max(cover, key=cover.get) if cover and max(cover.values()) > 0 else -1
         frags = sum(near[k, t].size >= 3 for k in pipes)
@@ -161,7 +179,7 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
                "on_line_fraction": cover.get(best, 0) / detectable.size if detectable.size else math.nan,
                "fragments": int(frags), "line": int(lines.rows[best]["line"]) if best >= 0 else -1,
                "position_rms_m": math.nan, "burial_error_m": math.nan, "burial_se_m": math.nan,
-               "nadir_deg": truth.nadir_deg(t)}
+               "nadir_deg": truth.nadir_deg(t), "chance_pings": chance, "seen": seen}
         if best >= 0:
             # over every ping of the line's extent where the target crosses the plane, near it or not
             pings, y = lines.ping_paths[best]
@@ -173,6 +191,21 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
     false = sum(all(near[k, t].size < 3 for t in range(len(truth.names))) for k in pipes)
     return rows, {"false_lines": int(false), "false_lines_per_km": false / track_km if track_km > 0 else math.nan,
                   "track_km": float(track_km)}
+
+
+def _above_chance(truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, target: int, count: int,
+                  match_m: float) -> tuple[float, bool]:
+    """The mean count of pings with a detection within ``match_m`` of the target's copies shifted by
+    :data:`CHANCE_OFFSETS_M`, and whether ``count`` (the target's own) is improbable under that rate: a
+    one-sided binomial tail over the pings the target crosses below :data:`SEEN_P_VALUE`."""
+    crossing = int(np.count_nonzero(np.isfinite(truth.y[:, target])))
+    if crossing == 0:
+        return math.nan, False
+    copies = [np.unique(det_ping[truth.distance(det_ping, det_y + shift, target) <= match_m]).size
+              for shift in CHANCE_OFFSETS_M]
+    chance = float(np.mean(copies))
+    rate = min(max(chance, 0.5) / crossing, 1.0)  # half a ping at least: no copy hit is no proof of a zero rate
+    return chance, bool(binom.sf(count - 1, crossing, rate) < SEEN_P_VALUE)
 
 
 def score_survey(products, input_paths: list, *, match_m: float = MATCH_M) -> tuple[list, dict] | None:

@@ -86,7 +86,7 @@ class SurveyProducts:
     files : dict
         :func:`clbeam.io.survey_store.product_paths`.
     detections : dict
-        ``ping``, ``y_m`` of the detections, and per survey ping its
+        ``ping``, ``y_m``, ``z_m`` of the detections (m, earth frame), and per survey ping its
         ``file_index`` and ``file_ping`` (for scoring against a simulation's truth).
     track_km : float
         Length of the survey line (km; NaN without navigation or speed).
@@ -193,7 +193,7 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     return SurveyProducts(n_imaged=n_imaged, n_peaks=first.n_rows, n_detections=int(det.ping.size),
                           objects=det.objects, lines=lines, navigation=bool(nav.has_nav.any()), utm_epsg=nav.epsg,
                           files=files, track_km=track_length_km(nav, first.per_ping["imaged"]),
-                          detections={"ping": det.ping, "y_m": det.y, "file_index": first.per_ping["file_index"],
+                          detections={"ping": det.ping, "y_m": det.y, "z_m": det.z, "file_index": first.per_ping["file_index"],
                                       "file_ping": first.per_ping["file_ping"]})
 
 

@@ -137,3 +137,28 @@ def test_truth_scoring_counts_fragments_false_lines_and_errors_by_hand():
     assert r["position_rms_m"] == pytest.approx(0.5) and r["burial_error_m"] == pytest.approx(0.3)
     assert summary["false_lines"] == 1 and summary["false_lines_per_km"] == pytest.approx(0.5)
     assert math.isclose(r["on_line_fraction"], 10 / 18)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_target_is_seen_above_chance_only_where_its_detections_outnumber_the_clutters(seed):
+    """Uniform clutter of density ``lam`` per metre across and ping puts a detection within 2 m of any place in
+    a ping with probability ``1 - exp(-4 lam)`` (Poisson): the copies' mean count is that fraction of the
+    pings, within four binomial standard deviations; a target with a detection of its own in every ping is
+    seen, one with none but the clutter's is not (binomial tail against the copies' rate)."""
+    rng = np.random.default_rng(seed)
+    n, lam = 60, 0.05
+    truth = LineTruth(["T", "U"], np.tile([-100.0, 200.0], (n, 1)), np.ones((n, 2)), np.tile([-100.0, 200.0], (n, 1)))
+    ping, y = [], []
+    for k in range(n):
+        clutter = rng.uniform(-400, 400, rng.poisson(lam * 800))
+        own = [-100.0 + rng.normal(0, 0.3)]
+        ping += [k] * (clutter.size + 1)
+        y += list(clutter) + own
+    lines = SurveyLines([], [], np.zeros(0), 0, None, 1.0, [])
+    scored, _ = score_lines(lines, truth, np.asarray(ping), np.asarray(y), 1.0)
+    expected = n * (1 - np.exp(-4 * lam))
+    sigma = np.sqrt(n * (1 - np.exp(-4 * lam)) * np.exp(-4 * lam) / 4)  # the mean of four copies' counts
+    for r in scored:
+        assert abs(r["chance_pings"] - expected) < 4 * sigma + 1
+    assert scored[0]["seen"] and scored[0]["detectable_pings"] == n
+    assert not scored[1]["seen"]
