@@ -54,8 +54,6 @@ SNR test judge a peak (a weak echo in noise keeps the sensitivity it had).
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -146,15 +144,8 @@ def contrast_at(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.ndar
     if np.sum((aw[:, 1] - aw[:, 0]) * (rw[:, 1] - rw[:, 0])) > TABLE_CELLS_RATIO * (a1 - a0) * (r1 - r0):
         band = x[a0:a1, r0:r1]   # the table and the maxima over the band the boxes cover only
         finite = bool(np.isfinite(band.sum()))   # (an overflowing sum only takes the masked way)
-        local = [(b_a - a0, b_r - r0) for b_a, b_r in boxes]
-        if len(os.sched_getaffinity(0)) > 1:   # the echoes' maxima beside the table's sums (NumPy frees the GIL)
-            with ThreadPoolExecutor(max_workers=1) as pool:
-                maxima = pool.submit(box_maxima, band, ag - a0, rg - r0, finite=finite)
-                total, count, n_g, reliable = _clutter_from_table(band, local, finite)
-                peak = maxima.result()
-        else:
-            total, count, n_g, reliable = _clutter_from_table(band, local, finite)
-            peak = box_maxima(band, ag - a0, rg - r0, finite=finite)
+        total, count, n_g, reliable = _clutter_from_table(band, [(b_a - a0, b_r - r0) for b_a, b_r in boxes], finite)
+        peak = box_maxima(band, ag - a0, rg - r0, finite=finite)
         alone = np.flatnonzero(~reliable)
     for k in alone:  # box by box: few peaks, or a quiet window beside a far brighter echo
         (total_w, n_w), (total_gr, n_gr), (total_ga, n_ga), (total_g, n_g[k], peak[k]) = \

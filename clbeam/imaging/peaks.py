@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -177,8 +175,9 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         for row, values in zip(kept, zip(*(v.tolist() for v in tests.values()))):
             row.update(zip(tests, values))   # in place: the rows are this call's own
         return kept
-    cells, floor = _maxima_and_floor(cf_smooth, intensity, threshold)
-    peaks = _peaks(context, cf_smooth, intensity, grid, cells, refine, _least_intensity(floor, min_snr_db))
+    floor = None if intensity is None else noise_floor(intensity, cf_smooth)
+    peaks = _peaks(context, cf_smooth, intensity, grid, coherence_peaks(cf_smooth, threshold), refine,
+                   _least_intensity(floor, min_snr_db))
     if intensity is None:
         return _table(context, peaks)
     keep, tests = _tests(context, cf_smooth, intensity, grid, floor, peaks.range_m, peaks.angle_deg,
@@ -236,19 +235,6 @@ class _Peaks:
     def take(self, index: np.ndarray) -> "_Peaks":
         return _Peaks(self.range_m[index], self.angle_deg[index], self.cf[index], self.intensity[index],
                       {name: values[index] for name, values in self.cells.items()})
-
-
-def _maxima_and_floor(cf_smooth: np.ndarray, intensity: np.ndarray | None, threshold: float) -> tuple:
-    """:func:`~clbeam.imaging.postprocess.coherence_peaks` and the noise floor (``None`` without an
-    intensity), side by side where there are two CPUs (passes over the whole image each; NumPy frees the
-    GIL in them)."""
-    if intensity is None:
-        return coherence_peaks(cf_smooth, threshold), None
-    if len(os.sched_getaffinity(0)) < 2:
-        return coherence_peaks(cf_smooth, threshold), noise_floor(intensity, cf_smooth)
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        floor = pool.submit(noise_floor, intensity, cf_smooth)
-        return coherence_peaks(cf_smooth, threshold), floor.result()
 
 
 def _peaks(context: PingContext, cf_smooth, intensity, grid: PolarGrid, peaks: np.ndarray, refine,
