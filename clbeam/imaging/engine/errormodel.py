@@ -32,6 +32,7 @@ the relative costs :data:`MODE_COST` measured by ``clbeam bench``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -173,6 +174,8 @@ class Setting:
     def describe(self) -> str:
         """One line: mode, upsampling, beams, predicted error (and what was measured on the ping's geometry)."""
         beams = f"beams x{self.beams.oversampling:g}/{self.beams.taps} taps" if self.beams else "direct"
+        if self.beams and self.beams.domain == "frequency":
+            beams += " in the frequency domain"
         up = f" x{self.upsample}" if self.upsample > 1 else ""
         measured = f"; measured {self.measured}" if self.measured else ""
         return f"{self.interp}{up}, {beams}: predicted {self.error_db:.1f} dB{measured}"
@@ -252,6 +255,14 @@ def choose_setting(settings: list[Setting], max_error_db: float, *, interp: str 
     beams : "auto", None or BeamSampling
         Beam sampling chosen by the budget, off, or forced.
     """
+    # frequency-domain beams are chosen as their time-domain twin (the model's bound: they add no time
+    # interpolation), the time interpolation then serving the rows they leave to the time domain
+    twin = beams if not isinstance(beams, BeamSampling) or beams.domain == "time" else \
+        dataclasses.replace(beams, domain="time")
+    if twin is not beams:
+        return dataclasses.replace(choose_setting(settings, max_error_db, interp=interp, upsample=upsample,
+                                                  beams=twin), beams=beams)
+
     def fits(s: Setting) -> bool:
         return ((interp is None or s.interp == interp) and (upsample is None or s.upsample == upsample)
                 and (beams == "auto" or s.beams == beams))
