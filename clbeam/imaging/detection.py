@@ -143,7 +143,7 @@ def contrast_at(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.ndar
     r0, r1 = int(min(rw[:, 0].min(), rg[:, 0].min())), int(max(rw[:, 1].max(), rg[:, 1].max()))
     if np.sum((aw[:, 1] - aw[:, 0]) * (rw[:, 1] - rw[:, 0])) > TABLE_CELLS_RATIO * (a1 - a0) * (r1 - r0):
         band = x[a0:a1, r0:r1]   # the table and the maxima over the band the boxes cover only
-        finite = bool(np.isfinite(band.sum()))   # (an overflowing sum only takes the masked way)
+        finite = bool(np.isfinite(band.max()))   # no NaN and no +inf (a -inf the table finds itself)
         total, count, n_g, reliable = _clutter_from_table(band, [(b_a - a0, b_r - r0) for b_a, b_r in boxes], finite)
         peak = box_maxima(band, ag - a0, rg - r0, finite=finite)
         alone = np.flatnonzero(~reliable)
@@ -174,12 +174,17 @@ TABLE_CHUNK_ROWS = 32
 def _clutter_from_table(x: np.ndarray, boxes: list, finite: bool) -> tuple:
     """The clutter sums and counts (the first box less the next two plus the last, as in
     :func:`contrast_at`), the last box's counts and whether each sum is reliable
-    (:data:`TABLE_RELIABLE_FRACTION`), from a summed-area table of ``x``'s finite cells (``finite``: all are)."""
+    (:data:`TABLE_RELIABLE_FRACTION`), from a summed-area table of ``x``'s finite cells (``finite``: all are,
+    but for -inf cells, which the table shows)."""
     n_r = x.shape[1]
     # the corners (first, first), (first, end), (end, first), (end, end) of every box, flat in the table
     corners = np.concatenate([b_a[:, k] * (n_r + 1) + b_r[:, m] for b_a, b_r in boxes for k in (0, 1) for m in (0, 1)])
-    at, where = np.unique(corners, return_inverse=True)
+    small = corners.size and corners.max() < np.iinfo(np.int32).max   # (int32 sorts faster)
+    at, where = np.unique(corners.astype(np.int32) if small else corners, return_inverse=True)
+    at = at.astype(np.int64)
     table = _table_at(x, at, finite)
+    if finite and not np.isfinite(table).all():   # a box holds a non-finite cell after all: left out
+        finite, table = False, _table_at(x, at, False)
     counts = None if finite else np.rint(_table_at(np.isfinite(x), at, True)).astype(np.int64)
     n, sign = len(boxes[0][0]), (1, -1, -1, 1)
     total, scale, count, n_last = np.zeros(n), np.zeros(n), np.zeros(n, dtype=np.int64), None
@@ -283,36 +288,55 @@ BOX_BY_BOX_MAXIMA = 256
 
 def _sliding_box_maxima(x: np.ndarray, box_a: np.ndarray, first: np.ndarray, width: int, finite: bool) -> np.ndarray:
     """:func:`box_maxima` of boxes of one ``width`` of ranges from the columns ``first`` (at least one row
-    each): a block of rows at a time, the maximum of ``width`` ranges from every column (that of 2^k ranges
-    by halves, then of two overlapping such spans), and the largest of it over each box's rows in the
-    block (NaN where none is finite)."""
+    each), :data:`MAXIMA_GROUP_ROWS` of their first rows at a time: the maximum of ``width`` ranges from
+    every column on the rows those boxes cover (the rows the previous group's boxes share kept), then each
+    box's largest over its rows (NaN where none is finite)."""
     n_a, n_r = x.shape
-    dtype = np.result_type(x.dtype, np.float32)
-    span = 1 << (width.bit_length() - 1)   # the largest power of 2 not above the width
-    order = np.argsort(box_a[:, 0], kind="stable")
-    starts, tallest = box_a[order, 0], int((box_a[:, 1] - box_a[:, 0]).max())
-    peak = np.full(len(box_a), -np.inf, dtype=dtype)
-    bufs = np.empty((2, TABLE_BLOCK_ROWS * n_r), dtype=dtype)   # flat: a block's rows ``n_r`` apart
-    for b0 in range(int(starts[0]), int(box_a[:, 1].max()), TABLE_BLOCK_ROWS):
-        b1 = min(b0 + TABLE_BLOCK_ROWS, n_a)
-        near = order[np.searchsorted(starts, b0 - tallest + 1):np.searchsorted(starts, b1)]
-        near = near[box_a[near, 1] > b0]
-        if near.size == 0:
+    heights = box_a[:, 1] - box_a[:, 0]
+    tallest, order = int(heights.max()), np.argsort(box_a[:, 0], kind="stable")
+    starts = box_a[order, 0]
+    # each box's rows (a shorter box repeats its last row)
+    rows_of = box_a[:, :1] + np.minimum(np.arange(tallest), heights[:, None] - 1)
+    along = np.empty((MAXIMA_GROUP_ROWS + tallest - 1, n_r - width + 1), dtype=np.result_type(x.dtype, np.float32))
+    peak = np.full(len(box_a), -np.inf, dtype=along.dtype)
+    have = (0, 0)   # the rows whose maxima ``along`` holds, from its first row
+    for g0 in range(int(starts[0]), int(box_a[:, 1].max()), MAXIMA_GROUP_ROWS):
+        group = order[np.searchsorted(starts, g0):np.searchsorted(starts, g0 + MAXIMA_GROUP_ROWS)]
+        if group.size == 0:
             continue
-        cur = x[b0:b1] if finite else np.where(np.isfinite(x[b0:b1]), x[b0:b1], -np.inf).astype(dtype, copy=False)
-        valid, s, k = n_r, 1, 0
-        while s < span:   # cur[:, c]: the maximum of s ranges from c (c < valid)
-            nxt = bufs[k].reshape(TABLE_BLOCK_ROWS, n_r)[:b1 - b0, :valid - s]
-            np.maximum(cur[:, :valid - s], cur[:, s:valid], out=nxt)
-            cur, valid, s, k = nxt, valid - s, 2 * s, 1 - k
-        full = bufs[k].reshape(TABLE_BLOCK_ROWS, n_r)[:b1 - b0, :valid - (width - span)]
-        np.maximum(cur[:, :valid - (width - span)], cur[:, width - span:valid], out=full)
-        # each box's rows within the block (a box's rows beyond it repeat its last row in it)
-        rows = np.clip(box_a[near, :1] + np.arange(tallest), np.maximum(box_a[near, :1], b0),
-                       np.minimum(box_a[near, 1:], b1) - 1) - b0
-        peak[near] = np.maximum(peak[near], np.take(bufs[k], rows * n_r + first[near, None]).max(axis=1))
+        g1 = min(g0 + MAXIMA_GROUP_ROWS + tallest - 1, n_a)
+        kept = max(0, have[1] - g0) if have[0] <= g0 else 0
+        along[:kept] = along[g0 - have[0]:g0 - have[0] + kept]
+        _sliding_maxima(x, g0 + kept, g1, width, finite, along[kept:g1 - g0])
+        have = (g0, g1)
+        peak[group] = np.take(along, (rows_of[group] - g0) * along.shape[1] + first[group, None]).max(axis=1)
     peak = peak.astype(np.float64)
     return np.where(peak > -np.inf, peak, np.nan)
+
+
+#: boxes whose first rows lie within this many angle rows take their maxima together
+MAXIMA_GROUP_ROWS = 64
+#: angle rows per block of the sliding maxima's passes (blocks in a CPU's cache)
+MAXIMA_BLOCK_ROWS = 32
+
+
+def _sliding_maxima(x: np.ndarray, a0: int, a1: int, width: int, finite: bool, out: np.ndarray) -> None:
+    """``out[a - a0, c]``: the largest of ``x[a, c:c + width]`` (non-finite cells as -inf unless ``finite``),
+    for the rows ``a0:a1``, a block at a time: the maximum of 2^k ranges by halves, then of two overlapping
+    such spans."""
+    n_r = x.shape[1]
+    span = 1 << (width.bit_length() - 1)   # the largest power of 2 not above the width
+    bufs = np.empty((2, MAXIMA_BLOCK_ROWS, n_r), dtype=out.dtype)
+    for b0 in range(a0, a1, MAXIMA_BLOCK_ROWS):
+        b1 = min(b0 + MAXIMA_BLOCK_ROWS, a1)
+        cur = x[b0:b1] if finite else np.where(np.isfinite(x[b0:b1]), x[b0:b1], -np.inf).astype(out.dtype, copy=False)
+        valid, s, k = n_r, 1, 0
+        while s < span:   # cur[:, c]: the maximum of s ranges from c (c < valid)
+            nxt = bufs[k, :b1 - b0, :valid - s]
+            np.maximum(cur[:, :valid - s], cur[:, s:valid], out=nxt)
+            cur, valid, s, k = nxt, valid - s, 2 * s, 1 - k
+        np.maximum(cur[:, :n_r - width + 1], cur[:, width - span:width - span + n_r - width + 1],
+                   out=out[b0 - a0:b1 - a0])
 
 
 def _sparse_box_maxima(x: np.ndarray, box_a: np.ndarray, box_r: np.ndarray) -> np.ndarray:

@@ -374,21 +374,25 @@ def filtered_contrast(x, i, j, window_cells, guard_cells):
     return echo, clutter
 
 
-@pytest.mark.parametrize("with_nan", [False, True])
-def test_thousands_of_peaks_on_a_regular_grid_equal_whole_image_filters(with_nan):
+@pytest.mark.parametrize("cells", ["finite", "nan-inf", "minus-inf"])
+def test_thousands_of_peaks_on_a_regular_grid_equal_whole_image_filters(cells):
     """The fast way of many peaks (a summed-area table over the band the peaks cover, the echoes' maxima of
     the guard's width along range a block of rows at a time, the few boxes the edges cut each on their own)
     against SciPy's maximum and uniform filters over the whole image: the paper's cells and the SBP29's
     windows (+-53 ranges x +-66 angles, +-5 x +-22), 3,000 peaks in the band of 80 degrees a seabed takes
-    and on the edges, float32 intensity spanning 10^6, NaN cells.  The echo to 1e-12 dB (the same cell), the
-    clutter to 1e-9 dB: float64 rounding of sums of 14,000 cells by either way, ~1e-12 relative."""
+    and on the edges, float32 intensity spanning 10^6; NaN and infinite cells, or -inf ones alone (the
+    table finds them itself), left out.  The echo to 1e-12 dB (the same cell), the clutter to 1e-9 dB:
+    float64 rounding of sums of 14,000 cells by either way, ~1e-12 relative."""
     rng = np.random.default_rng(21)
     ranges, angles = 100.0 + 0.2 * np.arange(1200), -40.0 + 0.1 * np.arange(800)
     window, guard = (53.5 * 0.2, 66.5 * 0.1), (5.5 * 0.2, 22.5 * 0.1)
     x = (rng.exponential(1.0, (angles.size, ranges.size)) * 10 ** rng.uniform(0, 6, (angles.size, 1))).astype(np.float32)
-    if with_nan:
+    if cells == "nan-inf":
         x[:, :40] = np.nan
         x[rng.random(x.shape) < 0.01] = np.nan
+        x[rng.random(x.shape) < 0.001] = np.inf
+    if cells != "finite":
+        x[rng.random(x.shape) < 0.001] = -np.inf
     i = np.r_[0, angles.size - 1, 0, angles.size - 1, rng.integers(200, 600, 3000)]
     j = np.r_[0, 0, ranges.size - 1, ranges.size - 1, rng.integers(0, ranges.size, 3000)]
     echo, clutter = contrast_at(x, ranges, angles, ranges[j], angles[i], window=window, guard=guard)
