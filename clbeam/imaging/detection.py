@@ -169,6 +169,9 @@ TABLE_RELIABLE_FRACTION = 1e-6
 TABLE_BLOCK_ROWS = 64
 #: table rows (the corners' angle rows) whose range sums are taken in one call
 TABLE_CHUNK_ROWS = 32
+#: at most this many angle rows between two corners' rows are added to the running sums one by one (more:
+#: a block's sum at a time; NumPy's float64 sum of a few float32 rows costs about three adds)
+TABLE_ROW_BY_ROW = 8
 
 
 def _clutter_from_table(x: np.ndarray, boxes: list, finite: bool) -> tuple:
@@ -216,8 +219,10 @@ def _table_at(x: np.ndarray, at: np.ndarray, finite: bool) -> np.ndarray:
         chunk, above = rows[c0:c0 + TABLE_CHUNK_ROWS], columns
         for k, row in enumerate(chunk):
             sums = buf[k, 1:-1]
-            if finite and row == done + 1:   # one row since the last corner (the same sum as a block's)
+            if finite and done < row <= done + TABLE_ROW_BY_ROW:   # a few rows since the last corner: one by one
                 np.add(above, x[done], out=sums)
+                for r in range(done + 1, row):
+                    np.add(sums, x[r], out=sums)
             else:
                 np.copyto(sums, above)
                 for b0 in range(done, row, TABLE_BLOCK_ROWS):   # the rows since the last corner, a block at a time
