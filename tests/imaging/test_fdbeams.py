@@ -31,7 +31,7 @@ from clbeam.model.pulse import Pulse
 
 FS, C = 40000.0, 1500.0
 BAND = (2000.0, 9000.0)
-GRID = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.2, max_range_m=300.0, angles_deg=(-60, 60))
+GRID = PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.2, max_range_m=600.0, angles_deg=(-60, 60))
 
 
 def sbp(n=64, width=3.528):
@@ -55,7 +55,7 @@ GEOMETRIES = {
 }
 
 
-def _input(geometry, n_samples=24000, **kw) -> BeamformInput:
+def _input(geometry, n_samples=48000, **kw) -> BeamformInput:
     elements, roll, heave, source = GEOMETRIES[geometry]
     ping = point_ping(polar_point(100.0, 10.0), record_s=n_samples / FS, kind="analytic", roll_deg=roll,
                       heave_m=heave, source_m=source, elements_m=elements)
@@ -103,7 +103,7 @@ def _row_focus(zones, n_rows: int) -> np.ndarray:
 def _wavelet_scene(geometry, points_rt):
     """Channels holding the compressed 2-9 kHz pulse from points ``(range m, angle degree)`` (exact band-limited
     records: phase ramps on the wavelet's bins) and the wavelet to evaluate them anywhere."""
-    inp = _input(geometry)
+    inp = _input(geometry, n_samples=24000)
     psi = PulseWavelet.of_replica(Pulse(f0_hz=2000.0, f1_hz=9000.0, duration_s=0.01).replica(FS), FS, 1 << 15)
     data = np.zeros((inp.n_channels, inp.n_samples), np.complex128)
     arrivals = []
@@ -154,7 +154,7 @@ def test_zone_sums_equal_the_echoes_summed_at_the_zones_delays(geometry):
 
 def _calibration(geometry, **kw):
     elements, roll, heave, source = GEOMETRIES[geometry]
-    ping = point_ping(polar_point(100.0, 10.0), record_s=0.45, kind="analytic", roll_deg=roll, heave_m=heave,
+    ping = point_ping(polar_point(100.0, 10.0), record_s=0.85, kind="analytic", roll_deg=roll, heave_m=heave,
                       source_m=source, elements_m=elements)
     inp = dataclasses.replace(Imager(GRID, ImagingOptions(interp="lanczos4", beams=None)).beamform_input(ping), **kw)
     return inp, CalibrationScene(inp, GRID, BAND, Pulse(f0_hz=2000.0, f1_hz=9000.0, duration_s=0.02).replica(FS))
@@ -169,7 +169,7 @@ def test_images_hold_the_budget_against_the_exact_sums(geometry, apodized):
     0.0114, CF 0.9933 on nodes).  The beams are x2 with 16 taps: with x1.5/12 and x2/12 the angular
     interpolation alone leaves |dCF| 0.022 and 0.012 on the sweep (the time-domain beams 0.035 and 0.027 on
     the same cells), where the frequency-domain sums imaged on the cells themselves hold 0.001.  Rows
-    nearer than the first zone (below 243 m for the 6 m array) are summed in time, with Lanczos-8 here (with
+    nearer than the first zone (below 350 m for the 6 m array) are summed in time, with Lanczos-8 here (with
     Lanczos-4 they alone miss the budget: |dCF| 0.018)."""
     weights = {"weights": np.hanning(len(GEOMETRIES[geometry][0]) + 2)[1:-1]} if apodized else {}
     inp, scene = _calibration(geometry, **weights)
@@ -202,9 +202,9 @@ def test_opencl_steering_equals_its_numpy_form():
 def test_skipped_samples_and_the_near_rows_are_formed_in_time():
     """A zone whose segment holds a NaN sample, the rows nearer than the first zone and the rows whose delays
     leave the record come from the time-domain sums: M, S and Q equal them there (the reference's own)."""
-    inp = _input("sbp-roll-heave-source", n_samples=18000)
+    inp = _input("sbp-roll-heave-source", n_samples=36000)
     data = inp.data.copy()
-    data[5, 14000:14004] = np.nan
+    data[5, 28000:28004] = np.nan
     inp = dataclasses.replace(inp, data=data, data_token=None)
     beams = PolarGrid.beams(GRID.ranges_m[::4], np.linspace(-40.0, 40.0, 9))
     ref = get_engine("reference")
@@ -218,7 +218,7 @@ def test_skipped_samples_and_the_near_rows_are_formed_in_time():
     zones = zone_plan(inp, beams)
     in_zones = np.zeros(beams.shape[1], dtype=bool)
     in_zones[zones.bounds[0]:zones.bounds[-1]] = True
-    nan_row = int(np.argmin(np.abs(range_bases(inp, beams) - 14000)))
+    nan_row = int(np.argmin(np.abs(range_bases(inp, beams) - 28000)))
     timed = ~in_zones
     timed[nan_row] = True
     assert in_zones.any() and (~in_zones).sum() > 10 and want.m[:, nan_row].min() < inp.n_channels

@@ -57,11 +57,12 @@ from clbeam.errors import GeometryError, GridError, OptionError, require
 from clbeam.imaging.engine.common import BeamformInput, Sums, channel_signature, range_bases
 from clbeam.model.grid import PolarGrid
 
-#: the zones' largest path-length error, as a fraction of the wavelength at the band's top.  A point on a
-#: zone's edge (a 48-element jittered array with roll and a source offset, 150 m out) had |dCF| 0.033, 0.018,
-#: 0.009 and 0.006-0.010 (by where the edge falls) on its cells with 0.01, 0.005, 0.003 and 0.002: 3-5 per
-#: wavelength; 0.002 keeps it within the budget's 0.02 and near its calibration margin's 0.0114
-ZONE_PATH_ERROR_WAVELENGTHS = 0.002
+#: the zones' largest path-length error, as a fraction of the wavelength at the band's top.  On the bench
+#: ping's calibration echoes (whose windows straddle zone edges as the image's cells do) 0.002 measured
+#: -52.7 dB and |dCF| 0.011-0.012 (at the budget's margin, 0.0114), 0.001 -61.5 dB and 0.004-0.005, 0.0005
+#: -70 dB (the intensity error falls with its square); a point on a zone's edge 150 m from a jittered array
+#: had |dCF| 0.033 with 0.01
+ZONE_PATH_ERROR_WAVELENGTHS = 0.001
 #: a zone holds at least this many range rows: nearer rows (thinner zones) are formed in the time domain
 MIN_ZONE_ROWS = 16
 #: samples of record either side of a zone's reach, tapered to zero (Hann): a segment's spectrum then
