@@ -115,7 +115,8 @@ def local_contrast(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.n
 
 
 def contrast_at(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.ndarray, range_m: np.ndarray,
-                angle_deg: np.ndarray, *, window: tuple, guard: tuple) -> tuple[np.ndarray, np.ndarray]:
+                angle_deg: np.ndarray, *, window: tuple, guard: tuple,
+                finite: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`local_contrast` of peaks at ``range_m`` (m) and ``angle_deg`` (degree), arrays of one length:
     ``(echo_db, clutter_db)`` (dB re the intensity's unit), each peak at its nearest grid node.
 
@@ -123,7 +124,8 @@ def contrast_at(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.ndar
     are summed from a summed-area table of that band and their echoes taken from sliding maxima along
     range, a few passes over the band whatever the number of peaks; the clutter then agrees with the
     box-by-box sums to about 1e-10 dB (float64 rounding), and a window the table cannot resolve
-    (:data:`TABLE_RELIABLE_FRACTION`) is summed box by box.  Fewer are summed box by box.
+    (:data:`TABLE_RELIABLE_FRACTION`) is summed box by box.  Fewer are summed box by box.  ``finite``: that
+    the intensity holds no NaN and no +inf, where the caller knows it (``None``: found out).
     """
     x = np.asarray(intensity)
     r, a = np.asarray(ranges_m, dtype=np.float64), np.asarray(angles_deg, dtype=np.float64)
@@ -143,7 +145,8 @@ def contrast_at(intensity: np.ndarray, ranges_m: np.ndarray, angles_deg: np.ndar
     r0, r1 = int(min(rw[:, 0].min(), rg[:, 0].min())), int(max(rw[:, 1].max(), rg[:, 1].max()))
     if np.sum((aw[:, 1] - aw[:, 0]) * (rw[:, 1] - rw[:, 0])) > TABLE_CELLS_RATIO * (a1 - a0) * (r1 - r0):
         band = x[a0:a1, r0:r1]   # the table and the maxima over the band the boxes cover only
-        finite = bool(np.isfinite(band.max()))   # no NaN and no +inf (a -inf the table finds itself)
+        if finite is None:   # no NaN and no +inf (a -inf the table finds itself)
+            finite = bool(np.isfinite(band.max()))
         total, count, n_g, reliable = _clutter_from_table(band, [(b_a - a0, b_r - r0) for b_a, b_r in boxes], finite)
         peak = box_maxima(band, ag - a0, rg - r0, finite=finite)
         alone = np.flatnonzero(~reliable)
@@ -418,7 +421,7 @@ def _box_sums(x: np.ndarray, aw, ag, rw, rg) -> tuple:
     return tuple(out)
 
 
-def noise_floor(intensity: np.ndarray, cf: np.ndarray | None = None) -> float:
+def noise_floor(intensity: np.ndarray, cf: np.ndarray | None = None, *, maximum: float | None = None) -> float:
     """Mean intensity of the ping's incoherent noise (units of the intensity), from the low tail.
 
     Parameters
@@ -427,6 +430,8 @@ def noise_floor(intensity: np.ndarray, cf: np.ndarray | None = None) -> float:
         ``|S|^2`` of the ping's cells.
     cf : numpy.ndarray, optional
         The CF: only cells with a CF (enough channels) count; without it, cells with intensity > 0.
+    maximum : float, optional
+        The intensity's largest value but NaN (``numpy.nanmax``) where the caller has it (one pass less).
     """
     x = np.asarray(intensity).ravel()
     # a regular subsample of about half a million cells: the quantile to a fraction of a per cent, 20x faster
@@ -436,7 +441,8 @@ def noise_floor(intensity: np.ndarray, cf: np.ndarray | None = None) -> float:
     if not np.any(use):
         return math.nan
     floor = quantile(sample[use], FLOOR_QUANTILE) / -math.log1p(-FLOOR_QUANTILE)
-    return max(floor, float(np.nanmax(x)) * 10 ** (-FLOOR_DYNAMIC_RANGE_DB / 10))
+    top = float(np.nanmax(x)) if maximum is None else float(maximum)
+    return max(floor, top * 10 ** (-FLOOR_DYNAMIC_RANGE_DB / 10))
 
 
 def quantile(values: np.ndarray, q: float) -> float:
@@ -489,19 +495,20 @@ def exponential_sum_sf(y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     y = np.asarray(y, dtype=np.float64)
     mean, var, top = float(lam.sum()), float(np.sum(lam * lam)), 1.0 / float(lam.max())
     yy = np.where(np.isfinite(y) & (y > 0), y, mean)
+    col = np.asarray(lam, dtype=np.float64).reshape((-1,) + (1,) * yy.ndim)   # the eigenvalues along a first axis
     s = top - 1.0 / yy   # K'(s) >= y here: its largest term alone is y
     for _ in range(SADDLEPOINT_MAX_STEPS):
-        r = lam / (1.0 - lam * s[..., None])
-        step = (r.sum(axis=-1) - yy) / np.sum(r * r, axis=-1)
+        r = col / (1.0 - col * s)
+        step = (r.sum(axis=0) - yy) / np.sum(r * r, axis=0)
         lower = s - step
         down = lower < s
         if not down.any():   # every one at its root: a further step would not lower it
             break
         s = np.where(down, lower, s)
-    k = -np.sum(np.log1p(-lam * s[..., None]), axis=-1)
+    k = -np.sum(np.log1p(-col * s), axis=0)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         w = np.sign(s) * np.sqrt(np.maximum(2.0 * (s * yy - k), 0.0))
-        u = s * np.sqrt(np.sum(lam**2 / (1.0 - lam * s[..., None]) ** 2, axis=-1))
+        u = s * np.sqrt(np.sum(col**2 / (1.0 - col * s) ** 2, axis=0))
         p = ndtr(-w) + np.exp(-0.5 * w * w) / math.sqrt(2 * math.pi) * (1.0 / u - 1.0 / w)
     # at the mean the two terms cancel: their limit, 1/2 - k3 / (6 sqrt(2 pi) k2^1.5) (k2, k3 the cumulants)
     near_mean = np.abs(yy - mean) < 1e-4 * mean

@@ -175,23 +175,26 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         for row, values in zip(kept, zip(*(v.tolist() for v in tests.values()))):
             row.update(zip(tests, values))   # in place: the rows are this call's own
         return kept
-    floor = None if intensity is None else noise_floor(intensity, cf_smooth)
+    if intensity is None:
+        return _table(context, _peaks(context, cf_smooth, None, grid, coherence_peaks(cf_smooth, threshold), refine))
+    top = float(np.max(intensity)) if intensity.size else math.nan   # NaN where a cell is NaN
+    finite = math.isfinite(top)
+    floor = noise_floor(intensity, cf_smooth, maximum=top if finite else None)
     peaks = _peaks(context, cf_smooth, intensity, grid, coherence_peaks(cf_smooth, threshold), refine,
                    _least_intensity(floor, min_snr_db))
-    if intensity is None:
-        return _table(context, peaks)
     keep, tests = _tests(context, cf_smooth, intensity, grid, floor, peaks.range_m, peaks.angle_deg,
-                         intensity_db(peaks.intensity), peaks.cf, min_snr_db, min_contrast_db)
+                         intensity_db(peaks.intensity), peaks.cf, min_snr_db, min_contrast_db, finite=finite or None)
     return _table(context, peaks.take(keep), tests)
 
 
 def _tests(context: PingContext, cf_smooth, intensity, grid: PolarGrid, floor, range_m, angle_deg, level_db, cf,
-           min_snr_db, min_contrast_db) -> tuple[np.ndarray, dict]:
+           min_snr_db, min_contrast_db, finite: bool | None = None) -> tuple[np.ndarray, dict]:
     """The detection test of peaks at ``range_m``, ``angle_deg`` with intensities ``level_db`` (dB) and smoothed
     CFs ``cf`` (:func:`clbeam.imaging.detection.gate_peaks`): the kept ones' indices and their ``snr_db``,
     ``contrast_db`` and ``pfa`` columns.  The clutter is measured about the peaks the SNR test keeps only:
     the others leave the table whatever their contrast (a noise-free ping's thousands of maxima on its
-    rounding are a hundred above the floor)."""
+    rounding are a hundred above the floor).  ``finite``: the intensity holds no NaN and no +inf (``None``:
+    not known)."""
     band = context.band_hz
     lam = smoothing_eigenvalues(float(np.median(np.diff(grid.ranges_m))) if grid.shape[1] > 1 else 1.0,
                                 float(band[1] - band[0]), context.sound_speed_m_s)
@@ -202,7 +205,7 @@ def _tests(context: PingContext, cf_smooth, intensity, grid: PolarGrid, floor, r
     if measured.size:
         echo[measured], clutter[measured] = contrast_at(intensity, grid.ranges_m, grid.angles_deg,
                                                         np.asarray(range_m)[measured], np.asarray(angle_deg)[measured],
-                                                        window=window, guard=guard)
+                                                        window=window, guard=guard, finite=finite)
     keep, snr, contrast, pfa = gate_peaks(level_db, cf, floor=floor, echo_db=echo, clutter_db=clutter,
                                           n_channels=context.n_channels, eigenvalues=lam, min_snr_db=min_snr_db,
                                           min_contrast_db=min_contrast_db)
