@@ -138,13 +138,13 @@ def coherence_peaks(cf_smooth: np.ndarray, threshold: float = PEAK_THRESHOLD) ->
     require(img.ndim == 2, OptionError, f"coherence peaks need a 2-D (angle, range) image, got shape {img.shape}")
     if img.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    above = img > threshold
-    if np.count_nonzero(above) <= SPARSE_ABOVE_FRACTION * img.size:  # few cells to look at: each one's neighbours
-        flat = np.flatnonzero(above)
-        flat = flat[_not_below_neighbours_at(img, flat)]
+    flat = _cells_above(img, threshold, int(SPARSE_ABOVE_FRACTION * img.size))
+    if flat is not None:  # few cells to look at: each one's neighbours
+        not_below, tied = _neighbour_tests(img, flat)
+        flat, tied = flat[not_below], tied[not_below]
     else:
         flat = np.flatnonzero(_above_and_not_below_neighbours(img, threshold))
-    tied = _equal_neighbour(img, flat)
+        tied = _neighbour_tests(img, flat)[1]
     cells, first = flat[~tied], flat[~tied]
     if tied.any():  # plateaus: one cell each, where every member is not below any neighbour
         top = np.zeros(img.shape, dtype=bool)
@@ -200,14 +200,37 @@ def _max_of_three_along_range(x: np.ndarray, out: np.ndarray) -> np.ndarray:
     return out
 
 
-def _not_below_neighbours_at(img: np.ndarray, flat: np.ndarray) -> np.ndarray:
+def _cells_above(img: np.ndarray, threshold: float, most: int) -> np.ndarray | None:
+    """Flat indices of the cells above ``threshold`` (increasing), a block of rows at a time (the comparison
+    stays in the CPU's cache); ``None`` once there are more than ``most``."""
+    n_a, n_r = img.shape
+    rows = max(1, ABOVE_BLOCK_CELLS // max(n_r, 1))
+    found, count = [], 0
+    for a0 in range(0, n_a, rows):
+        flat = np.flatnonzero(img[a0:a0 + rows] > threshold)
+        count += flat.size
+        if count > most:
+            return None
+        found.append(flat + a0 * n_r)
+    return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
+
+
+#: cells per block of the comparison with the threshold
+ABOVE_BLOCK_CELLS = 1 << 18
+
+
+def _neighbour_tests(img: np.ndarray, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Whether each cell ``flat`` is not below any of its neighbours (cells beyond the image left out; a NaN
-    neighbour: False), as :func:`_above_and_not_below_neighbours` decides."""
+    neighbour: False), as :func:`_above_and_not_below_neighbours` decides, and whether it has a neighbour of
+    its own value."""
     values = img.ravel()
-    ok = np.ones(flat.size, dtype=bool)
+    own = values[flat]
+    ok, tied = np.ones(flat.size, dtype=bool), np.zeros(flat.size, dtype=bool)
     for index, inside in _neighbours(img.shape, flat):
-        ok &= ~inside | (values[index] <= values[flat])
-    return ok
+        near = values[index]
+        ok &= ~inside | (near <= own)
+        tied |= inside & (near == own)
+    return ok, tied
 
 
 def _neighbours(shape: tuple, flat: np.ndarray):
@@ -219,15 +242,6 @@ def _neighbours(shape: tuple, flat: np.ndarray):
         na, nr = a + da, r + dr
         inside = (na >= 0) & (na < n_a) & (nr >= 0) & (nr < n_r)
         yield np.where(inside, flat + da * n_r + dr, flat), inside
-
-
-def _equal_neighbour(img: np.ndarray, flat: np.ndarray) -> np.ndarray:
-    """Whether each cell ``flat`` has a neighbour of its own value."""
-    values = img.ravel()
-    tied = np.zeros(flat.size, dtype=bool)
-    for index, inside in _neighbours(img.shape, flat):
-        tied |= inside & (values[index] == values[flat])
-    return tied
 
 
 def _plateau_maxima(img: np.ndarray, top: np.ndarray, tied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
