@@ -300,26 +300,30 @@ def _sliding_box_maxima(x: np.ndarray, box_a: np.ndarray, first: np.ndarray, wid
     every column on the rows those boxes cover (the rows the previous group's boxes share kept), then each
     box's largest over its rows (NaN where none is finite)."""
     n_a, n_r = x.shape
-    heights = box_a[:, 1] - box_a[:, 0]
-    tallest, order = int(heights.max()), np.argsort(box_a[:, 0], kind="stable")
-    starts = box_a[order, 0]
-    # each box's rows (a shorter box repeats its last row)
-    rows_of = box_a[:, :1] + np.minimum(np.arange(tallest), heights[:, None] - 1)
+    order = np.argsort(box_a[:, 0], kind="stable")   # the boxes by first row: a group is a slice of them
+    starts, heights, first = box_a[order, 0], box_a[order, 1] - box_a[order, 0], first[order]
+    tallest = int(heights.max())
     along = np.empty((MAXIMA_GROUP_ROWS + tallest - 1, n_r - width + 1), dtype=np.result_type(x.dtype, np.float32))
+    # each box's rows from its first (a shorter box repeats its last row), as offsets into ``along``
+    row_steps = np.minimum(np.arange(tallest), heights[:, None] - 1).astype(np.intp) * along.shape[1]
     peak = np.full(len(box_a), -np.inf, dtype=along.dtype)
+    scratch = np.empty((2, MAXIMA_BLOCK_ROWS, n_r), dtype=along.dtype)
     have = (0, 0)   # the rows whose maxima ``along`` holds, from its first row
     for g0 in range(int(starts[0]), int(box_a[:, 1].max()), MAXIMA_GROUP_ROWS):
-        group = order[np.searchsorted(starts, g0):np.searchsorted(starts, g0 + MAXIMA_GROUP_ROWS)]
-        if group.size == 0:
+        i0, i1 = np.searchsorted(starts, [g0, g0 + MAXIMA_GROUP_ROWS])
+        if i0 == i1:
             continue
         g1 = min(g0 + MAXIMA_GROUP_ROWS + tallest - 1, n_a)
         kept = max(0, have[1] - g0) if have[0] <= g0 else 0
         along[:kept] = along[g0 - have[0]:g0 - have[0] + kept]
-        _sliding_maxima(x, g0 + kept, g1, width, finite, along[kept:g1 - g0])
+        _sliding_maxima(x, g0 + kept, g1, width, finite, along[kept:g1 - g0], scratch)
         have = (g0, g1)
-        peak[group] = np.take(along, (rows_of[group] - g0) * along.shape[1] + first[group, None]).max(axis=1)
-    peak = peak.astype(np.float64)
-    return np.where(peak > -np.inf, peak, np.nan)
+        at = row_steps[i0:i1] + ((starts[i0:i1] - g0) * along.shape[1] + first[i0:i1])[:, None]
+        peak[i0:i1] = np.take(along, at).max(axis=1)
+    peak = np.where(peak > -np.inf, peak.astype(np.float64), np.nan)
+    out = np.empty_like(peak)
+    out[order] = peak
+    return out
 
 
 #: boxes whose first rows lie within this many angle rows take their maxima together
@@ -328,13 +332,13 @@ MAXIMA_GROUP_ROWS = 64
 MAXIMA_BLOCK_ROWS = 32
 
 
-def _sliding_maxima(x: np.ndarray, a0: int, a1: int, width: int, finite: bool, out: np.ndarray) -> None:
+def _sliding_maxima(x: np.ndarray, a0: int, a1: int, width: int, finite: bool, out: np.ndarray,
+                    bufs: np.ndarray) -> None:
     """``out[a - a0, c]``: the largest of ``x[a, c:c + width]`` (non-finite cells as -inf unless ``finite``),
-    for the rows ``a0:a1``, a block at a time: the maximum of 2^k ranges by halves, then of two overlapping
-    such spans."""
+    for the rows ``a0:a1``, a block at a time (``bufs``: ``(2, MAXIMA_BLOCK_ROWS, n_range)`` scratch): the
+    maximum of 2^k ranges by halves, then of two overlapping such spans."""
     n_r = x.shape[1]
     span = 1 << (width.bit_length() - 1)   # the largest power of 2 not above the width
-    bufs = np.empty((2, MAXIMA_BLOCK_ROWS, n_r), dtype=out.dtype)
     for b0 in range(a0, a1, MAXIMA_BLOCK_ROWS):
         b1 = min(b0 + MAXIMA_BLOCK_ROWS, a1)
         cur = x[b0:b1] if finite else np.where(np.isfinite(x[b0:b1]), x[b0:b1], -np.inf).astype(out.dtype, copy=False)
@@ -392,8 +396,10 @@ def _bounds(axis: np.ndarray, k: np.ndarray, halves: tuple) -> list[np.ndarray]:
     """Per half-size (units of ``axis``), the ``(n, 2)`` index bounds of the nodes within it of nodes ``k``
     (exact on uneven axes; a millionth of a step of slack)."""
     slack = 1e-6 * (float(axis[-1] - axis[0]) / max(axis.size - 1, 1))
-    return [np.stack([np.searchsorted(axis, axis[k] - h - slack, side="left"),
-                      np.searchsorted(axis, axis[k] + h + slack, side="right")], axis=1) for h in halves]
+    nodes = axis if k.size > axis.size else axis[k]   # more nodes asked for than the axis has: every node's, taken
+    bounds = [np.stack([np.searchsorted(axis, nodes - h - slack, side="left"),
+                        np.searchsorted(axis, nodes + h + slack, side="right")], axis=1) for h in halves]
+    return [b[k] for b in bounds] if k.size > axis.size else bounds
 
 
 def _box_sums(x: np.ndarray, aw, ag, rw, rg) -> tuple:
