@@ -272,6 +272,8 @@ def test_steering_kernel_is_clean_under_oclgrind():
     for line in variants:
         assert float(re.search(r"rel=(\S+)", line).group(1)) < 1e-4 and "m_equal=True" in line, line
         assert "m_range=0-" in line   # cells beyond the record
+    zones = re.search(r"zones (\d+) rows (\d+)-(\d+) of (\d+)", r.stdout)
+    assert int(zones.group(1)) >= 2 and 0 < int(zones.group(2)) and int(zones.group(3)) < int(zones.group(4))
 
 
 def test_an_imager_with_frequency_domain_beams_says_so_and_holds_the_budget():
