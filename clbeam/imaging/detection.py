@@ -327,9 +327,9 @@ def _sliding_box_maxima(x: np.ndarray, box_a: np.ndarray, first: np.ndarray, wid
 
 
 #: boxes whose first rows lie within this many angle rows take their maxima together
-MAXIMA_GROUP_ROWS = 64
+MAXIMA_GROUP_ROWS = 256
 #: angle rows per block of the sliding maxima's passes (blocks in a CPU's cache)
-MAXIMA_BLOCK_ROWS = 32
+MAXIMA_BLOCK_ROWS = 16
 
 
 def _sliding_maxima(x: np.ndarray, a0: int, a1: int, width: int, finite: bool, out: np.ndarray,
