@@ -530,6 +530,7 @@ class Engine:
         from clbeam.imaging.engine.fdbeams import frequency_beam_sums
 
         return frequency_beam_sums(inp, plan.grid, steer=self._steering(), window_m=plan.beam_window_m, scale=scale,
+                                   channel_numbers=channel_signature(inp.n_channels),
                                    time_domain=lambda rows: self._beamform(inp, rows, mode, sums_out,
                                                                            plan.beam_window_m, scale))
 

@@ -54,7 +54,6 @@ import scipy.fft
 from scipy.signal import CZT
 
 from clbeam.errors import GeometryError, GridError, OptionError, require
-from clbeam.imaging.engine.common import BeamformInput, Sums, channel_signature, range_bases
 from clbeam.model.grid import PolarGrid
 
 #: the zones' largest path-length error, as a fraction of the wavelength at the band's top.  On the bench
@@ -123,7 +122,7 @@ def near_field_factor(range_m: float, max_offset_m: float) -> float:
     return (range_m / (range_m - max_offset_m)) ** 2 if range_m > max_offset_m else math.inf
 
 
-def zone_plan(inp: BeamformInput, grid: PolarGrid, *, path_error_wavelengths: float = ZONE_PATH_ERROR_WAVELENGTHS,
+def zone_plan(inp, grid: PolarGrid, *, path_error_wavelengths: float = ZONE_PATH_ERROR_WAVELENGTHS,
               margin: int = SEGMENT_MARGIN, min_zone_rows: int = MIN_ZONE_ROWS) -> ZonePlan:
     """Range zones of ``grid`` for ``inp`` (straight rays) whose path-length error is at most
     ``path_error_wavelengths`` times the band's top wavelength (module description).
@@ -180,7 +179,38 @@ def zone_plan(inp: BeamformInput, grid: PolarGrid, *, path_error_wavelengths: fl
     return ZonePlan(bounds.astype(np.int64), focus, bound, allowed, kappa)
 
 
-def _covered_rows(inp: BeamformInput, grid: PolarGrid, margin: int) -> np.ndarray:
+def range_bases(inp, grid: PolarGrid) -> np.ndarray:
+    """Sample position (float64) of the two-way path ``2 R`` of each range, ``(2 R / c - t0) fs``: the engine's
+    :func:`clbeam.imaging.engine.common.range_bases` (not imported: the engine imports this module)."""
+    return (2.0 * grid.ranges_m / inp.sound_speed_m_s - inp.t0_s) * inp.sample_rate_hz
+
+
+@dataclass
+class BeamSums:
+    """The beam stage's sums, each ``(n_beam, n_range)``: what the beam-to-grid interpolation reads.
+
+    Attributes
+    ----------
+    s : numpy.ndarray
+        complex128 coherent sum ``S`` (data units).
+    q : numpy.ndarray
+        float64 incoherent sum ``Q`` (squared data units).
+    m : numpy.ndarray
+        int32 channel count ``M``.
+    signature : numpy.ndarray or None
+        ``G``, the sum of the contributing channels' numbers ``g_n``.
+    w : numpy.ndarray or None
+        ``W``, the sum of their weights (apodized sums).
+    """
+
+    s: np.ndarray
+    q: np.ndarray
+    m: np.ndarray
+    signature: np.ndarray | None
+    w: np.ndarray | None = None
+
+
+def _covered_rows(inp, grid: PolarGrid, margin: int) -> np.ndarray:
     """Bool per range row: every channel's delay, with ``margin`` samples and a tap either side, is inside the
     record (``|d(o)| <= |o|``)."""
     reach = (np.linalg.norm(inp.source_offset_m) + np.max(np.linalg.norm(inp.element_offsets_m, axis=1),
@@ -199,7 +229,7 @@ def offset_delays_m(offsets_m: np.ndarray, range_m: float, angles_deg: np.ndarra
     return (np.sum(o * o, axis=1)[None, :] - 2.0 * range_m * (uy * o[None, :, 1] + uz * o[None, :, 2])) / (dist + range_m)
 
 
-def zone_delays_samples(inp: BeamformInput, angles_deg: np.ndarray, focus_m: float) -> np.ndarray:
+def zone_delays_samples(inp, angles_deg: np.ndarray, focus_m: float) -> np.ndarray:
     """Each beam's and channel's delay at a zone's focus (samples), ``(n_beam, n_channel)``:
     ``(d(o_src) + d(o_n)) fs / c``."""
     d_src = offset_delays_m(inp.source_offset_m, focus_m, angles_deg)
@@ -266,7 +296,7 @@ class _Zone:
     positions: np.ndarray  # the rows' sample positions within the segment
 
 
-def _zone_segment(inp: BeamformInput, base: np.ndarray, rows: slice, margin: int) -> _Zone:
+def _zone_segment(inp, base: np.ndarray, rows: slice, margin: int) -> _Zone:
     """The stretch of record zone ``rows`` reaches: every channel's delay (``|d(o)| <= |o|``), a tap and
     ``margin`` tapered samples either side."""
     reach = (np.linalg.norm(inp.source_offset_m) + np.max(np.linalg.norm(inp.element_offsets_m, axis=1),
@@ -290,23 +320,26 @@ def evaluate_at(spectrum: np.ndarray, first_bin: int, length: int, positions: np
         return czt(spectrum, axis=-1) * carrier / length
 
 
-def frequency_beam_sums(inp: BeamformInput, grid: PolarGrid, *, time_domain, steer=steer_numpy,
-                        window_m: np.ndarray | None = None, scale: float = 1.0,
-                        zones: ZonePlan | None = None, margin: int = SEGMENT_MARGIN) -> Sums:
+def frequency_beam_sums(inp, grid: PolarGrid, *, time_domain, steer=steer_numpy,
+                        channel_numbers: np.ndarray | None = None, window_m: np.ndarray | None = None,
+                        scale: float = 1.0, zones: ZonePlan | None = None, margin: int = SEGMENT_MARGIN) -> BeamSums:
     """``S``, ``Q``, ``M`` (``W`` with apodization) and the channel signature ``G`` on a beam grid, formed in
     the frequency domain zone by zone (module description).
 
     Parameters
     ----------
-    inp : BeamformInput
+    inp : clbeam.imaging.engine.BeamformInput
         Channels and geometry (straight rays: no travel-time tables).
     grid : PolarGrid
         The beams (angles, degree) at uniformly spaced ranges (m).
     time_domain : callable
-        ``time_domain(rows_grid) -> Sums`` (``s``, ``q``, ``m``, ``signature``, ``w`` with apodization) on a
-        grid of the same beams at some of the ranges: the rows the zones do not hold.
+        ``time_domain(rows_grid)`` -> the engine's sums (``s``, ``q``, ``m``, ``signature``, ``w`` with
+        apodization) on a grid of the same beams at some of the ranges: the rows the zones do not hold.
     steer : callable
         ``steer(spectra, delays_cycles, first_bin)`` as :func:`steer_numpy` (an OpenCL kernel's wrapper).
+    channel_numbers : numpy.ndarray, optional
+        ``(n_channel,)`` ``g_n`` (:func:`clbeam.imaging.engine.common.channel_signature`): ``G`` on the zones'
+        rows is their sum; ``None``: no ``G``.
     window_m : numpy.ndarray, optional
         ``(n_beam, 2)`` range interval (m) per beam; cells outside it are 0.
     scale : float
@@ -315,23 +348,28 @@ def frequency_beam_sums(inp: BeamformInput, grid: PolarGrid, *, time_domain, ste
         Default :func:`zone_plan` of ``inp`` and ``grid``.
     margin : int
         Tapered samples either side of each segment.
-
-    Returns
-    -------
-    Sums
-        ``s`` complex128, ``q`` float64, ``m`` int32, ``signature``, ``w`` (apodized), each ``(n_beam, n_range)``.
     """
     require(inp.tables is None and inp.table_source is None, OptionError,
             "frequency-domain beams need straight rays; image through a sound-speed profile with time-domain beams")
     require(grid.shape[1] < 3 or bool(np.allclose(np.diff(grid.ranges_m), grid.ranges_m[1] - grid.ranges_m[0])),
             GridError, "frequency-domain beams need uniformly spaced ranges")
     zones = zone_plan(inp, grid, margin=margin) if zones is None else zones
-    n_b, n_r = grid.shape
+    shape = grid.shape
+    out = BeamSums(s=np.zeros(shape, np.complex128), q=np.zeros(shape), m=np.zeros(shape, np.int32),
+                   signature=None if channel_numbers is None else np.zeros(shape),
+                   w=None if inp.weights is None else np.zeros(shape))
+    time_rows = _zones_into(inp, grid, zones, steer, scale, margin, channel_numbers, out)
+    _time_domain_rows(grid, time_rows, time_domain, out)
+    if window_m is not None:
+        _clear_outside(grid, window_m, out)
+    return out
+
+
+def _zones_into(inp, grid, zones: ZonePlan, steer, scale: float, margin: int, channel_numbers, out: BeamSums):
+    """Every zone's sums into ``out``; returns the rows left to the time domain (bool per row)."""
     weights = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
-    out = Sums(s=np.zeros((n_b, n_r), np.complex128), q=np.zeros((n_b, n_r)), m=np.zeros((n_b, n_r), np.int32),
-               signature=np.zeros((n_b, n_r)), w=np.zeros((n_b, n_r)) if inp.weights is not None else None)
     base = range_bases(inp, grid)
-    time_rows = np.ones(n_r, dtype=bool)
+    time_rows = np.ones(grid.shape[1], dtype=bool)
     for z in range(zones.n_zones):
         rows = slice(int(zones.bounds[z]), int(zones.bounds[z + 1]))
         zone = _zone_segment(inp, base, rows, margin)
@@ -339,19 +377,17 @@ def frequency_beam_sums(inp: BeamformInput, grid: PolarGrid, *, time_domain, ste
         if not np.all(np.isfinite(seg)):
             continue                              # skipped samples: these rows in the time domain
         _zone_sums(inp, grid, zone, seg * scale, weights, zones.focus_m[z], steer, out, margin)
-        out.m[:, rows] = inp.n_channels
-        out.signature[:, rows] = float(np.sum(channel_signature(inp.n_channels)))
+        out.m[:, rows] = inp.n_channels           # every channel is inside the record on a zone's rows
+        if out.signature is not None:
+            out.signature[:, rows] = float(np.sum(channel_numbers))
         if out.w is not None:
             out.w[:, rows] = float(np.sum(weights))
         time_rows[rows] = False
-    _time_domain_rows(grid, time_rows, time_domain, out)
-    if window_m is not None:
-        _clear_outside(grid, window_m, out)
-    return out
+    return time_rows
 
 
 def _zone_sums(inp, grid, zone: _Zone, seg: np.ndarray, weights: np.ndarray, focus_m: float, steer,
-               out: Sums, margin: int) -> None:
+               out: BeamSums, margin: int) -> None:
     """One zone's ``S`` and ``Q`` into ``out``: the tapered segment's kept bins steered and evaluated at the rows;
     ``Q`` from the squared envelopes of the same band-limited channels at twice the rate (the envelope's
     band, twice the channels' width, would alias at their rate)."""
@@ -376,19 +412,20 @@ def _zone_sums(inp, grid, zone: _Zone, seg: np.ndarray, weights: np.ndarray, foc
     out.q[:, zone.rows] = 2.0 * evaluate_at(steer(env_spec, delays, 0), 0, 2 * n_fft, 2.0 * zone.positions).real
 
 
-def _time_domain_rows(grid: PolarGrid, rows: np.ndarray, time_domain, out: Sums) -> None:
+def _time_domain_rows(grid: PolarGrid, rows: np.ndarray, time_domain, out: BeamSums) -> None:
     """The rows the zones do not hold, from ``time_domain``."""
     idx = np.flatnonzero(rows)
     if idx.size == 0:
         return
     sub = time_domain(PolarGrid.beams(grid.ranges_m[idx], grid.angles_deg))
     out.s[:, idx], out.q[:, idx], out.m[:, idx] = sub.s, sub.q, sub.m
-    out.signature[:, idx] = sub.signature
+    if out.signature is not None:
+        out.signature[:, idx] = sub.signature
     if out.w is not None:
         out.w[:, idx] = sub.w
 
 
-def _clear_outside(grid: PolarGrid, window_m: np.ndarray, out: Sums) -> None:
+def _clear_outside(grid: PolarGrid, window_m: np.ndarray, out: BeamSums) -> None:
     """Zero every output outside each beam's range interval (m), as the time-domain beam stage leaves them."""
     rw = np.asarray(window_m, dtype=np.float64)
     require(rw.shape == (grid.shape[0], 2), GeometryError,
