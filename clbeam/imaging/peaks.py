@@ -164,17 +164,9 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
         image) and the ship's navigation, by decreasing CF.
     """
     if mlh:
-        floor = None if intensity is None else noise_floor(intensity, cf_smooth)
         rows = _rows(context, cf_smooth, intensity, grid, threshold, mlh, position, refine, mlh_options)
-        if intensity is None:
-            return rows
-        keep, tests = _tests(context, cf_smooth, intensity, grid, floor, np.array([r["range_m"] for r in rows]),
-                             np.array([r["angle_deg"] for r in rows]), np.array([r["intensity_db"] for r in rows]),
-                             np.array([r["cf"] for r in rows]), min_snr_db, min_contrast_db)
-        kept = [rows[k] for k in keep.tolist()]
-        for row, values in zip(kept, zip(*(v.tolist() for v in tests.values()))):
-            row.update(zip(tests, values))   # in place: the rows are this call's own
-        return kept
+        return rows if intensity is None else _tested_rows(context, cf_smooth, intensity, grid, rows, min_snr_db,
+                                                           min_contrast_db)
     if intensity is None:
         return _table(context, _peaks(context, cf_smooth, None, grid, coherence_peaks(cf_smooth, threshold), refine))
     top = float(np.max(intensity)) if intensity.size else math.nan   # NaN where a cell is NaN
@@ -185,6 +177,19 @@ def peak_rows(context: PingContext, cf_smooth: np.ndarray, intensity: np.ndarray
     keep, tests = _tests(context, cf_smooth, intensity, grid, floor, peaks.range_m, peaks.angle_deg,
                          intensity_db(peaks.intensity), peaks.cf, min_snr_db, min_contrast_db, finite=finite or None)
     return _table(context, peaks.take(keep), tests)
+
+
+def _tested_rows(context: PingContext, cf_smooth, intensity, grid: PolarGrid, rows: list, min_snr_db,
+                 min_contrast_db) -> list[dict]:
+    """The ``rows`` (main-lobe detections) the detection test keeps, with its columns (updated in place)."""
+    keep, tests = _tests(context, cf_smooth, intensity, grid, noise_floor(intensity, cf_smooth),
+                         np.array([r["range_m"] for r in rows]), np.array([r["angle_deg"] for r in rows]),
+                         np.array([r["intensity_db"] for r in rows]), np.array([r["cf"] for r in rows]), min_snr_db,
+                         min_contrast_db)
+    kept = [rows[k] for k in keep.tolist()]
+    for row, values in zip(kept, zip(*(v.tolist() for v in tests.values()))):
+        row.update(zip(tests, values))
+    return kept
 
 
 def _tests(context: PingContext, cf_smooth, intensity, grid: PolarGrid, floor, range_m, angle_deg, level_db, cf,
