@@ -265,7 +265,7 @@ def box_maxima(x: np.ndarray, box_a: np.ndarray, box_r: np.ndarray, *, finite: b
     box_a, box_r : numpy.ndarray
         ``(n, 2)`` first and end angle, and range, index of each box.
     finite : bool, optional
-        Whether every cell of ``x`` is finite (``None``: found out).
+        Whether ``x`` holds no NaN and no +inf (-inf cells are values below any other; ``None``: found out).
     """
     box_a, box_r = np.asarray(box_a, dtype=np.int64), np.asarray(box_r, dtype=np.int64)
     width = box_r[:, 1] - box_r[:, 0]
@@ -278,7 +278,7 @@ def box_maxima(x: np.ndarray, box_a: np.ndarray, box_r: np.ndarray, *, finite: b
     sliding = some[width[some] == common]
     rest = some[width[some] != common]
     if finite is None:
-        finite = bool(np.isfinite(x.sum()))
+        finite = bool(np.isfinite(x.max())) if x.size else True   # no NaN, no +inf (a -inf is a value here)
     if sliding.size:
         peak[sliding] = _sliding_box_maxima(x, box_a[sliding], box_r[sliding, 0], common, finite)
     if rest.size > BOX_BY_BOX_MAXIMA:
