@@ -187,6 +187,7 @@ def test_whole_image_search_equals_scikit_image_on_plateaus_and_ties(monkeypatch
     import clbeam.imaging.postprocess as postprocess
 
     monkeypatch.setattr(postprocess, "SPARSE_ABOVE_FRACTION", sparse)
+    monkeypatch.setattr(postprocess, "ABOVE_BLOCK_CELLS", 64)   # the cells above the threshold a few rows at a time
 
     rng = np.random.default_rng(100 + seed)
     for trial in range(60):
@@ -202,10 +203,18 @@ def test_whole_image_search_equals_scikit_image_on_plateaus_and_ties(monkeypatch
             np.testing.assert_array_equal(got, scikit_image_peaks(img, threshold))
 
 
-def test_whole_image_search_equals_scikit_image_on_a_sonar_like_image():
+@pytest.mark.parametrize("blocks", [False, True], ids=["as-set", "cell-by-cell-in-blocks"])
+def test_whole_image_search_equals_scikit_image_on_a_sonar_like_image(monkeypatch, blocks):
     """A smooth image with thousands of maxima, rounded to steps of 2^-10 so that neighbours tie (as a
-    noise-free ping's smoothed CF does): the same cells in the same order."""
+    noise-free ping's smoothed CF does): the same cells in the same order, as the module is set and with
+    the cells above the threshold looked at one by one, found in blocks of a few rows."""
     from scipy.ndimage import gaussian_filter
+
+    import clbeam.imaging.postprocess as postprocess
+
+    if blocks:
+        monkeypatch.setattr(postprocess, "ABOVE_BLOCK_CELLS", 3000)
+        monkeypatch.setattr(postprocess, "SPARSE_ABOVE_FRACTION", 1.0)
 
     rng = np.random.default_rng(8)
     img = gaussian_filter(rng.random((300, 700)), 1.2)
