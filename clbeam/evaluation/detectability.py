@@ -192,10 +192,14 @@ def beam(env: Environment, u, f_hz) -> np.ndarray:
     """The transmit column's pattern ``sinc(L f u / c)`` times the simulator's taper (1 to ``0.75 u_cut``,
     cosine to 0 at ``u_cut = λ(f0) / L``) at direction cosines ``u`` and frequencies ``f_hz``."""
     so = env.scene.sonar
+    return np.sinc(so.tx_length_m * np.asarray(f_hz) * np.asarray(u) / env.c) * 0.5 * (1 + np.cos(np.pi * _taper_x(env, u)))
+
+
+def _taper_x(env: Environment, u) -> np.ndarray:
+    """Where ``|u|`` lies on the taper's half cosine: 0 to ``0.75 u_cut``, then linearly to 1 at ``u_cut``."""
+    so = env.scene.sonar
     u_cut = min(env.scene.model.tx_beam_cut * env.c / so.pulse_f0_hz / so.tx_length_m, 0.5)
-    a = np.abs(np.asarray(u, dtype=np.float64))
-    x = np.clip((a - 0.75 * u_cut) / (0.25 * u_cut), 0.0, 1.0)
-    return np.sinc(so.tx_length_m * np.asarray(f_hz) * np.asarray(u) / env.c) * 0.5 * (1 + np.cos(np.pi * x))
+    return np.clip((np.abs(np.asarray(u, dtype=np.float64)) - 0.75 * u_cut) / (0.25 * u_cut), 0.0, 1.0)
 
 
 # -- the echo ---------------------------------------------------------------------------
@@ -277,7 +281,7 @@ def echo_spectrum(env: Environment, pipe: Pipe, range_m: float, f_hz: np.ndarray
     if key not in _ALONG_CACHE:
         if len(_ALONG_CACHE) > 4096:
             _ALONG_CACHE.clear()
-        _ALONG_CACHE[key] = _along_pipe(env, pipe, range_m, f, geo)
+        _ALONG_CACHE[key] = _along_pipe_fast(env, pipe, range_m, f, geo)
     return common * _ALONG_CACHE[key]
 
 
@@ -286,10 +290,16 @@ def echo_spectrum(env: Environment, pipe: Pipe, range_m: float, f_hz: np.ndarray
 _ALONG_CACHE: dict = {}
 
 
-def _along_pipe(env: Environment, pipe: Pipe, range_m: float, f: np.ndarray, geo: dict) -> np.ndarray:
-    """``Σ Δs b(u_s, f) e^(−2πi f (τ_s − τ_0)) 10^(−a_w 2R_s/20) / R_s²`` along a straight pipe inside the
-    beam's cut (delay of the specular point removed), every quarter of the shortest wavelength over the
-    largest direction cosine of a ray on the pipe (the simulator's point spacing)."""
+def _pipe_points(env: Environment, pipe: Pipe, range_m: float, geo: dict) -> tuple:
+    """The simulator's points along a straight pipe inside the beam's cut: every quarter of the shortest
+    wavelength over the largest direction cosine of a ray on the pipe.
+
+    Returns
+    -------
+    tuple
+        ``u`` (direction cosines on the transmit column), ``slant`` (m), ``tau`` (delays re the specular
+        point's, s) and the spacing ``step`` (m).
+    """
     so = env.scene.sonar
     d = math.radians(pipe.heading_deg)
     h, b = env.height_m, pipe.burial_m
@@ -304,10 +314,59 @@ def _along_pipe(env: Environment, pipe: Pipe, range_m: float, f: np.ndarray, geo
     u = x / slant
     inside = np.abs(u) < u_cut
     u, slant, tf = u[inside], slant[inside], path["time_factor_m"][inside]
-    tau = 2 * (tf - geo["delay_range_m"]) / env.c
+    return u, slant, 2 * (tf - geo["delay_range_m"]) / env.c, step
+
+
+def _along_pipe(env: Environment, pipe: Pipe, range_m: float, f: np.ndarray, geo: dict) -> np.ndarray:
+    """``Σ Δs b(u_s, f) e^(−2πi f (τ_s − τ_0)) 10^(−a_w 2R_s/20) / R_s²`` along a straight pipe inside the
+    beam's cut (delay of the specular point removed) at the points of :func:`_pipe_points`, term by term:
+    the reference of :func:`_along_pipe_fast`."""
+    u, slant, tau, step = _pipe_points(env, pipe, range_m, geo)
     loss = 10 ** (-absorption_db_per_m(env, f)[:, None] * 2 * slant[None, :] / 20)
     phase = np.exp(-2j * np.pi * f[:, None] * tau[None, :])
     return np.einsum("fs,fs->f", beam(env, u[None, :], f[:, None]) * loss / slant ** 2, phase) * step
+
+
+#: relative size of the first absorption term left out of :func:`_along_pipe_fast`'s expansion
+ABSORPTION_TERM_TOL = 1e-15
+
+
+def _along_pipe_fast(env: Environment, pipe: Pipe, range_m: float, f: np.ndarray, geo: dict) -> np.ndarray:
+    """:func:`_along_pipe` by a non-uniform FFT (:func:`~clbeam.evaluation.detectability_nufft.lattice_sum`).
+
+    The boxcar beam is a pair of delays, ``sinc(2 f x) e^(−2πifτ) = (e^(−2πif(τ−x)) − e^(−2πif(τ+x))) /
+    (4πi f x)`` with ``x = L u / 2c``, and the absorption ``e^(−γ(f) R_s)`` a Taylor series in
+    ``(γ(f) − γ̄) (R_s − R̄)`` summed until its next term is below :data:`ABSORPTION_TERM_TOL`; points so
+    near ``u = 0`` that the pair would cancel to rounding are summed directly.  Frequencies off a lattice
+    of :data:`BIN_HZ` fall back to the direct sum.
+    """
+    k = np.rint((f - f[0]) / BIN_HZ).astype(np.int64)
+    if f.size < 2 or not np.allclose(f[0] + k * BIN_HZ, f, rtol=0, atol=1e-6 * BIN_HZ):
+        return _along_pipe(env, pipe, range_m, f, geo)
+    from clbeam.evaluation.detectability_nufft import lattice_sum
+
+    u, slant, tau, step = _pipe_points(env, pipe, range_m, geo)
+    gamma = absorption_db_per_m(env, f) * math.log(10) / 10           # per m of slant, both ways
+    g_mid, g_half = 0.5 * (gamma.max() + gamma.min()), 0.5 * (gamma.max() - gamma.min())
+    dr = slant - 0.5 * (slant.max() + slant.min())
+    amp = step * 0.5 * (1 + np.cos(np.pi * _taper_x(env, u))) / slant ** 2 * np.exp(-g_mid * dr)
+    x = env.scene.sonar.tx_length_m * u / (2 * env.c)
+    near = np.abs(2 * np.pi * f.min() * x) < 1e-6
+    n_terms, term, arg = 1, 1.0, g_half * float(np.max(np.abs(dr), initial=0.0))
+    while term * arg / n_terms > ABSORPTION_TERM_TOL:
+        term *= arg / n_terms
+        n_terms += 1
+    far = ~near
+    powers = (dr[far, None] ** np.arange(n_terms)) / np.array([math.factorial(n) for n in range(n_terms)])
+    pair = (amp[far] / x[far])[:, None] * powers
+    sums = lattice_sum(np.r_[tau[far] - x[far], tau[far] + x[far]], np.r_[pair, -pair], f[0], BIN_HZ, int(k[-1]) + 1)[k]
+    series = np.sum(sums * (-(gamma - g_mid))[:, None] ** np.arange(n_terms), axis=1)
+    out = np.exp(-gamma * (slant.max() + slant.min()) / 2) * series / (4j * np.pi * f)
+    if near.any():
+        loss = np.exp(-gamma[:, None] * slant[None, near])
+        out = out + (beam(env, u[None, near], f[:, None]) * loss / slant[near] ** 2
+                     * np.exp(-2j * np.pi * f[:, None] * tau[None, near])).sum(axis=1) * step
+    return out
 
 
 # -- reverberation ------------------------------------------------------------------------
@@ -318,10 +377,24 @@ def _ring(env: Environment, f: np.ndarray, slant_m: float, horizontal_m: float) 
     so = env.scene.sonar
     u_cut = min(env.scene.model.tx_beam_cut * env.c / so.pulse_f0_hz / so.tx_length_m, 0.5)
     u_max = min(u_cut, 0.999 * horizontal_m / slant_m)
-    u = np.linspace(0.0, u_max, 241)
+    u, b2 = _beam_squared(env, f, u_max)
     y = np.sqrt(np.maximum(horizontal_m ** 2 - (slant_m * u) ** 2, 1e-6))
-    g = beam(env, u[None, :], f[:, None]) ** 2 * slant_m ** 2 / y[None, :]
-    return 2 * np.trapezoid(g, u, axis=1)
+    return 2 * np.trapezoid(b2 * slant_m ** 2 / y[None, :], u, axis=1)
+
+
+def _beam_squared(env: Environment, f: np.ndarray, u_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """241 direction cosines from 0 to ``u_max`` and ``b(u, f)²`` on them, kept for the next range (the
+    ring's ``u_max`` is the beam's cut at all but the nearest ranges)."""
+    so = env.scene.sonar
+    key = (u_max, env.c, so.tx_length_m, so.pulse_f0_hz, env.scene.model.tx_beam_cut, f.tobytes())
+    if _BEAM_CACHE.get("key") != key:
+        u = np.linspace(0.0, u_max, 241)
+        _BEAM_CACHE.update(key=key, value=(u, beam(env, u[None, :], f[:, None]) ** 2))
+    return _BEAM_CACHE["value"]
+
+
+#: the last ring's beam squared (:func:`_beam_squared`)
+_BEAM_CACHE: dict = {}
 
 
 def reverberation(env: Environment, pipe: Pipe, range_m: float, f: np.ndarray) -> list[dict]:
@@ -464,7 +537,7 @@ def _window_coherence(env: Environment, f: np.ndarray, geo: dict, beamwidth_rad:
     shifts = np.sin(theta + cells) - math.sin(theta)
 
     def mean_af2(delta: float) -> np.ndarray:
-        return np.mean([_af2(env, f, delta - s) for s in shifts], axis=0)
+        return np.mean(_af2(env, f[None, :], delta - shifts[:, None]), axis=0)
 
     return mean_af2
 

@@ -212,7 +212,7 @@ def predict(scene, *, ranges_m=None, heading_deg: float | None = None, absorptio
         A scene without pipelines, a range beyond the record, a bad pipe.
     """
     from clbeam.evaluation.detectability_stats import Tests
-    from clbeam.sim import load_scene
+    from clbeam.sim.catalog import load_scene
 
     sc = load_scene(scene, overrides=overrides or {})
     pipes = pipes_of_scene(sc)
