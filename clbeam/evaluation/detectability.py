@@ -33,7 +33,7 @@ from clbeam.evaluation.detectability_stats import (
     DEFAULT_DRAWS,
     ChannelModel,
     Tests,
-    monte_carlo_tests,
+    monte_carlo_batch,
     phase_step_for_coherence,
 )
 from clbeam.imaging.detection import CONTRAST_GUARD, CONTRAST_WINDOW
@@ -569,10 +569,20 @@ def detection(env: Environment, pipe: Pipe, range_m: float, *, draws: int = DEFA
         :func:`~clbeam.evaluation.detectability_stats.monte_carlo_tests`' probabilities (``pd``, ...)
         and :func:`channel_model`'s levels.
     """
-    require(math.isfinite(range_m) and range_m > 0, OptionError, f"range must be > 0 m, got {range_m}")
-    model, levels = channel_model(env, pipe, range_m)
-    res = monte_carlo_tests(model, env.tests, clutter=levels["clutter"], sound_speed_m_s=env.c, draws=draws, seed=seed)
-    return {**levels, **res}
+    return detections(env, pipe, [range_m], draws=draws, seed=seed)[0]
+
+
+def detections(env: Environment, pipe: Pipe, ranges_m, *, draws: int = DEFAULT_DRAWS, seed: int = 0) -> list[dict]:
+    """:func:`detection` at every horizontal range of ``ranges_m`` (m), the Monte Carlo of all ranges at
+    once (:func:`~clbeam.evaluation.detectability_stats.monte_carlo_batch`: each range gets the draws it
+    would get alone, common random numbers across ranges)."""
+    ranges = [float(r) for r in np.atleast_1d(np.asarray(ranges_m, dtype=np.float64))]
+    for r in ranges:
+        require(math.isfinite(r) and r > 0, OptionError, f"range must be > 0 m, got {r}")
+    built = [channel_model(env, pipe, r) for r in ranges]
+    res = monte_carlo_batch([mo for mo, _ in built], env.tests, clutters=[lv["clutter"] for _, lv in built],
+                            sound_speed_m_s=env.c, draws=draws, seed=seed)
+    return [{**lv, **r} for (_, lv), r in zip(built, res)]
 
 
 def with_uncertain(env: Environment, pipe: Pipe, name: str, sign: int) -> tuple[Environment, Pipe]:

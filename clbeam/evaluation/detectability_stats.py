@@ -169,63 +169,74 @@ class Tests:
         require(self.range_step_m > 0, OptionError, f"range step must be > 0 m, got {self.range_step_m!r}")
 
 
-def _draw(cov: np.ndarray, rng: np.random.Generator, shape: tuple) -> np.ndarray:
-    """Circular complex Gaussian vectors of covariance ``cov`` ``(L, L)``, ``shape + (L,)``."""
-    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.conj().T))
-    root = vecs * np.sqrt(np.maximum(vals, 0.0))
-    z = (rng.standard_normal(shape + (cov.shape[0],)) + 1j * rng.standard_normal(shape + (cov.shape[0],)))
-    return np.einsum("...l,kl->...k", z, root) / math.sqrt(2)   # einsum: no threaded BLAS for tiny products
+def _sqrt_psd(cov: np.ndarray) -> np.ndarray:
+    """The principal square root ``V sqrt(Λ) V^H`` of Hermitian positive semi-definite matrices
+    ``(..., L, L)`` (negative rounding in ``Λ`` clipped).  Unlike the eigenvectors scaled, ``V sqrt(Λ)``,
+    it is continuous in the matrix: the same normals give nearby draws for nearby covariances, so the
+    draws are common random numbers across ranges and Pd is smooth in range."""
+    vals, vecs = np.linalg.eigh(0.5 * (cov + np.swapaxes(cov.conj(), -1, -2)))
+    return (vecs * np.sqrt(np.maximum(vals, 0.0))[..., None, :]) @ np.swapaxes(vecs.conj(), -1, -2)
 
 
-def _channel_sums(model: ChannelModel, lags: np.ndarray, z: list, cov: np.ndarray, rng: np.random.Generator,
+def _complex_normals(rng: np.random.Generator, shape: tuple) -> np.ndarray:
+    """Circular complex Gaussians of unit power (the real parts drawn first, then the imaginary)."""
+    re = rng.standard_normal(shape)
+    return (re + 1j * rng.standard_normal(shape)) / math.sqrt(2)
+
+
+def _apply(root: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``root_n z`` for every model ``n``: ``(n, L, L)`` roots on ``(..., L)`` normals, ``(n, ..., L)``."""
+    return np.einsum("...l,nkl->n...k", z, root)     # einsum: no threaded BLAS for tiny products
+
+
+def _channel_sums(models: list, lags: np.ndarray, z: list, cov: np.ndarray, rng: np.random.Generator,
                   per: int, exact: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``(A, B) = (Σ p_n, Σ |p_n|²)`` over the channels at each lag, ``(per, L)`` each: the echo, the
-    reverberation draws ``z`` (each on its phase ramp) and the noise (covariance ``cov`` per channel).
+    """``(A, B) = (Σ p_n, Σ |p_n|²)`` over the channels at each lag, ``(n, per, L)`` each, for ``n`` models
+    with as many reverberation components, drawn from the same normals: the echo, the reverberation
+    draws ``z`` (each ``(n, per, L)``, on its phase ramp) and the noise (covariance ``cov`` ``(n, L, L)``
+    per channel).
 
     Not ``exact``: the channels' space is split into the span ``Q`` of the steering vector and the
     ramps (``q`` directions, drawn exactly) and its complement, whose noise power ``|w_⊥|²`` at a lag
     is a sum of ``M − q`` exponentials, correlated between lags as ``|C|²``: drawn as a Gaussian of
     that mean and covariance (``M − q`` is 61 or more on the SBP29: its skewness, 0.26, is left out).
     """
-    m = model.n_channels
+    m, n_lags = models[0].n_channels, lags.size
     n_idx = np.arange(m) - 0.5 * (m - 1)
-    ramps = [np.exp(1j * step * n_idx) for _, step in model.reverberation]
-    s = model.echo_waveform(lags)
+    steps = np.array([[step for _, step in mo.reverberation] for mo in models]).reshape(len(models), -1)
+    ramps = np.exp(1j * steps[:, :, None] * n_idx)                                  # (n, C, M)
+    s = np.stack([mo.echo_waveform(lags) for mo in models])                          # (n, L)
+    root = _sqrt_psd(cov)
     if exact:
-        p = np.broadcast_to(s, (per, m, lags.size)).astype(np.complex128)
-        for zk, ak in zip(z, ramps):
-            p = p + zk[:, None, :] * ak[None, :, None]
-        p = p + _draw(cov, rng, (per, m))
-        return p.sum(axis=1), np.sum(np.abs(p) ** 2, axis=1)
-    basis = np.column_stack([np.ones(m)] + [ak for ak, (_, step) in zip(ramps, model.reverberation) if step != 0])
-    q_mat, _ = np.linalg.qr(basis)
-    q = q_mat.shape[1]
-    ce = q_mat.conj().T @ np.ones(m)
-    pq = s[None, None, :] * ce[None, :, None] + _draw(cov, rng, (per, q))
-    for zk, ak in zip(z, ramps):
-        pq = pq + zk[:, None, :] * (q_mat.conj().T @ ak)[None, :, None]
-    a = np.einsum("j,pjl->pl", ce.conj(), pq)
-    mean = (m - q) * float(np.real(cov[0, 0]))
-    rest = mean + _draw_real((m - q) * np.abs(cov) ** 2, rng, (per,))
-    return a, np.sum(np.abs(pq) ** 2, axis=1) + np.maximum(rest, 0.0)
+        p = s[:, None, None, :] + _apply(root, _complex_normals(rng, (per, m, n_lags)))
+        for k, zk in enumerate(z):
+            p = p + zk[:, :, None, :] * ramps[:, k, None, :, None]
+        return p.sum(axis=2), np.sum(np.abs(p) ** 2, axis=2)
+    basis = np.concatenate([np.ones((len(models), m, 1)), np.swapaxes(ramps[:, steps[0] != 0, :], 1, 2)], axis=2)
+    qh = np.swapaxes(np.linalg.qr(basis)[0].conj(), 1, 2)                            # (n, q, M)
+    q = qh.shape[1]
+    ce = qh.sum(axis=2)
+    pq = s[:, None, None, :] * ce[:, None, :, None] + _apply(root, _complex_normals(rng, (per, q, n_lags)))
+    for k, zk in enumerate(z):
+        pq = pq + zk[:, :, None, :] * np.einsum("njm,nm->nj", qh, ramps[:, k])[:, None, :, None]
+    a = np.einsum("nj,npjl->npl", ce.conj(), pq)
+    mean = (m - q) * np.real(cov[:, 0, 0])
+    rest = mean[:, None, None] + _apply(_sqrt_psd((m - q) * np.abs(cov) ** 2), rng.standard_normal((per, n_lags)))
+    return a, np.sum(np.abs(pq) ** 2, axis=2) + np.maximum(rest.real, 0.0)
 
 
-def _draw_real(cov: np.ndarray, rng: np.random.Generator, shape: tuple) -> np.ndarray:
-    """Real Gaussian vectors of covariance ``cov`` ``(L, L)``, ``shape + (L,)``."""
-    vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
-    root = vecs * np.sqrt(np.maximum(vals, 0.0))
-    return np.einsum("...l,kl->...k", rng.standard_normal(shape + (cov.shape[0],)), root)
-
-
-def _lag_covariances(model: ChannelModel, lag_sets: list) -> tuple:
-    """The noise's and each reverberation's covariance at every distinct lag difference of ``lag_sets`` (s),
-    at once, and for each set the index array ``(n, n)`` into them."""
+def _lag_covariances(models: list, lag_sets: list) -> tuple:
+    """The noise's ``(n, U)`` and the reverberation's ``(n, C, U)`` covariances of ``n`` models on one band
+    at every distinct lag difference of ``lag_sets`` (s), at once, and for each set the index array
+    ``(L, L)`` into them."""
+    mo = models[0]
     diffs = np.concatenate([(lg[:, None] - lg[None, :]).ravel() for lg in lag_sets])
     key = np.round(diffs * 1e9).astype(np.int64)          # ns
     uniq, inverse = np.unique(key, return_inverse=True)
-    phase = np.exp(2j * np.pi * (uniq * 1e-9)[:, None] * model.frequency_hz)
-    cov_noise = model.noise_power * np.einsum("uk,k->u", phase, model.weight)
-    cov_rev = [np.einsum("uk,k->u", phase, density * model.weight ** 2) / model.bin_hz for density, _ in model.reverberation]
+    phase = np.exp(2j * np.pi * (uniq * 1e-9)[:, None] * mo.frequency_hz)
+    cov_noise = np.array([m.noise_power for m in models])[:, None] * np.einsum("uk,k->u", phase, mo.weight)[None, :]
+    dens = np.array([[d for d, _ in m.reverberation] for m in models]).reshape(len(models), -1, mo.frequency_hz.size)
+    cov_rev = np.einsum("uk,nck->ncu", phase, dens * mo.weight ** 2) / mo.bin_hz
     wheres, start = [], 0
     for lags in lag_sets:
         size = lags.size * lags.size
@@ -234,22 +245,23 @@ def _lag_covariances(model: ChannelModel, lag_sets: list) -> tuple:
     return cov_noise, cov_rev, wheres
 
 
-def _offset_tests(a: np.ndarray, b: np.ndarray, model: ChannelModel, tests: Tests, n_grid: int, floor: float,
-                  clutter: float, contrast_applies: bool) -> dict:
-    """The tests' outcomes of one offset's draws from their coherent sums ``a`` and incoherent sums ``b``
-    (``n_grid`` grid cells, then the refined point's seven smoothing taps)."""
-    m = model.n_channels
-    intensity = np.abs(a) ** 2 / (m * model.noise_power)     # re the noise floor M P
+def _offset_tests(a: np.ndarray, b: np.ndarray, models: list, tests: Tests, n_grid: int, clutter: np.ndarray,
+                  contrast_applies: np.ndarray) -> dict:
+    """The tests' outcomes ``(n, per)`` of one offset's draws from their coherent sums ``a`` and incoherent
+    sums ``b`` ``(n, per, L)`` (``n_grid`` grid cells, then the refined point's seven smoothing taps); the
+    noise floor ``M P`` is 1 in the intensity's units."""
+    m = models[0].n_channels
+    intensity = np.abs(a) ** 2 / (m * np.array([mo.noise_power for mo in models]))[:, None, None]
     cf = np.abs(a) ** 2 / (m * b)
-    grid_cf = np.stack([np.einsum("pl,l->p", cf[:, i - 3:i + 4], HANN7) for i in range(3, n_grid - 3)], axis=1)
-    per = a.shape[0]
-    level = intensity[:, n_grid + 3]
-    echo = np.max(intensity, axis=1)
-    return {"cf": np.max(grid_cf, axis=1) > tests.threshold,
-            "snr": np.ones(per, bool) if tests.min_snr_db is None else level >= floor * 10 ** (tests.min_snr_db / 10),
-            "contrast": np.ones(per, bool) if not contrast_applies
-            else echo >= clutter * 10 ** (tests.min_contrast_db / 10),
-            "cf_ref": np.einsum("pl,l->p", cf[:, n_grid:], HANN7)}
+    grid_cf = np.stack([np.einsum("npl,l->np", cf[..., i - 3:i + 4], HANN7) for i in range(3, n_grid - 3)], axis=-1)
+    level = intensity[..., n_grid + 3]
+    echo = np.max(intensity, axis=-1)
+    snr = np.ones(level.shape, bool) if tests.min_snr_db is None else level >= 10 ** (tests.min_snr_db / 10)
+    contrast = np.ones(level.shape, bool)
+    if tests.min_contrast_db is not None:
+        contrast = ~contrast_applies[:, None] | (echo >= clutter[:, None] * 10 ** (tests.min_contrast_db / 10))
+    return {"cf": np.max(grid_cf, axis=-1) > tests.threshold, "snr": snr, "contrast": contrast,
+            "cf_ref": np.einsum("npl,l->np", cf[..., n_grid:], HANN7)}
 
 
 def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, sound_speed_m_s: float,
@@ -281,32 +293,64 @@ def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, soun
     dict
         ``pd`` (all tests), ``p_cf`` (the grid's smoothed CF), ``p_snr`` and ``p_contrast`` (each with
         the CF test), the draws' smoothed CF at the refined point ``cf_refined`` and its median
-        ``cf_median``, and whether the
-        clutter test applied (``reverberation_limited``).
+        ``cf_median``, and whether the clutter test applied (``reverberation_limited``).
     """
+    return monte_carlo_batch([model], tests, clutters=[clutter], sound_speed_m_s=sound_speed_m_s, draws=draws,
+                             seed=seed, exact=exact)[0]
+
+
+def monte_carlo_batch(models: list, tests: Tests, *, clutters, sound_speed_m_s: float, draws: int = DEFAULT_DRAWS,
+                      seed: int = 0, exact: bool = False) -> list[dict]:
+    """:func:`monte_carlo_tests` of many models on one band (a sweep's ranges) at once.
+
+    Each model gets the very draws it would get alone (the same seed, the same normals through the
+    principal root of its own covariances): the models with as many reverberation components and
+    directions are drawn together.
+
+    Returns
+    -------
+    list of dict
+        :func:`monte_carlo_tests`' result per model, in order.
+    """
+    groups: dict = {}
+    for i, mo in enumerate(models):
+        require(mo.frequency_hz.shape == models[0].frequency_hz.shape and np.array_equal(mo.frequency_hz, models[0].frequency_hz)
+                and np.array_equal(mo.weight, models[0].weight), OptionError, "a batch of channel models needs one band")
+        groups.setdefault(tuple(step != 0 for _, step in mo.reverberation), []).append(i)
+    out = [None] * len(models)
+    for idx in groups.values():
+        res = _group_tests([models[i] for i in idx], tests, np.array([clutters[i] for i in idx], dtype=np.float64),
+                           sound_speed_m_s, draws, seed, exact)
+        for i, r in zip(idx, res):
+            out[i] = r
+    return out
+
+
+def _group_tests(models: list, tests: Tests, clutter: np.ndarray, sound_speed_m_s: float, draws: int, seed: int,
+                 exact: bool) -> list[dict]:
+    """:func:`monte_carlo_batch` of models whose reverberation arrives from as many directions."""
     rng = np.random.default_rng(seed)
     dr = tests.range_step_m
     half = SEARCH_CELLS + 3
     per = max(draws // GRID_OFFSETS, 1)
-    floor = 1.0
-    contrast_applies = tests.min_contrast_db is not None and 10 * math.log10(max(clutter, 1e-300)) >= 3.0
+    contrast_applies = (tests.min_contrast_db is not None) & (10 * np.log10(np.maximum(clutter, 1e-300)) >= 3.0)
     results = {k: [] for k in ("cf", "snr", "contrast", "cf_ref")}
     # grid cells about the echo at each offset, then the refined point (the echo) with its smoothing neighbours
     cell_sets = [np.r_[((j + 0.5) / GRID_OFFSETS - 0.5) * dr + dr * np.arange(-half, half + 1), dr * np.arange(-3, 4)]
                  for j in range(GRID_OFFSETS)]
     lag_sets = [2.0 * cells / sound_speed_m_s for cells in cell_sets]
-    cov_noise, cov_rev, wheres = _lag_covariances(model, lag_sets)
+    cov_noise, cov_rev, wheres = _lag_covariances(models, lag_sets)
     for lags, where in zip(lag_sets, wheres):
-        z = [_draw(cov[where], rng, (per,)) for cov in cov_rev]
-        a, b = _channel_sums(model, lags, z, cov_noise[where], rng, per, exact)
-        for k, v in _offset_tests(a, b, model, tests, 2 * half + 1, floor, clutter, contrast_applies).items():
+        z = [_apply(_sqrt_psd(cov_rev[:, k][:, where]), _complex_normals(rng, (per, lags.size)))
+             for k in range(cov_rev.shape[1])]
+        a, b = _channel_sums(models, lags, z, cov_noise[:, where], rng, per, exact)
+        for k, v in _offset_tests(a, b, models, tests, 2 * half + 1, clutter, contrast_applies).items():
             results[k].append(v)
-    cf_ok, snr_ok, con_ok = (np.concatenate(results[k]) for k in ("cf", "snr", "contrast"))
-    return {"pd": float(np.mean(cf_ok & snr_ok & con_ok)), "p_cf": float(np.mean(cf_ok)),
-            "p_snr": float(np.mean(cf_ok & snr_ok)), "p_contrast": float(np.mean(cf_ok & con_ok)),
-            "cf_median": float(np.median(np.concatenate(results["cf_ref"]))),
-            "cf_refined": np.concatenate(results["cf_ref"]),
-            "reverberation_limited": bool(contrast_applies)}
+    cf_ok, snr_ok, con_ok, cf_ref = (np.concatenate(results[k], axis=1) for k in ("cf", "snr", "contrast", "cf_ref"))
+    return [{"pd": float(np.mean(cf_ok[i] & snr_ok[i] & con_ok[i])), "p_cf": float(np.mean(cf_ok[i])),
+             "p_snr": float(np.mean(cf_ok[i] & snr_ok[i])), "p_contrast": float(np.mean(cf_ok[i] & con_ok[i])),
+             "cf_median": float(np.median(cf_ref[i])), "cf_refined": cf_ref[i],
+             "reverberation_limited": bool(contrast_applies[i])} for i in range(len(models))]
 
 
 def phase_step_for_coherence(kappa: float, n_channels: int) -> float:

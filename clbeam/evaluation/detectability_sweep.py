@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from clbeam.errors import OptionError, require
-from clbeam.evaluation.detectability import UNCERTAIN, Environment, Pipe, detection, pipes_of_scene, with_uncertain
+from clbeam.evaluation.detectability import UNCERTAIN, Environment, Pipe, detections, pipes_of_scene, with_uncertain
 from clbeam.evaluation.detectability_stats import DEFAULT_DRAWS
 
 #: draws per evaluation of the perturbed environments, and ranges of their coarse sweep
@@ -130,10 +130,9 @@ def _fmt_range(value: float, rows: list) -> str:
 
 
 def sweep(env: Environment, pipe: Pipe, ranges_m, *, draws: int = DEFAULT_DRAWS, seed: int = 0) -> list[dict]:
-    """:func:`~clbeam.evaluation.detectability.detection` at every range (m), common random numbers."""
+    """:func:`~clbeam.evaluation.detectability.detections` at every range (m), common random numbers."""
     rows = []
-    for r in ranges_m:
-        res = detection(env, pipe, float(r), draws=draws, seed=seed)
+    for r, res in zip(ranges_m, detections(env, pipe, ranges_m, draws=draws, seed=seed)):
         res.pop("cf_refined")
         rows.append({"target": pipe.name, "range_m": float(r), **res})
     return rows
@@ -155,7 +154,7 @@ def uncertainty(env: Environment, pipe: Pipe, ranges_m, nominal: dict, *, seed: 
         at = {}
         for sign in (-1, 1):
             e, p = with_uncertain(env, pipe, name, sign)
-            pd = [detection(e, p, float(x), draws=UNCERTAINTY_DRAWS, seed=seed)["pd"] for x in coarse]
+            pd = [res["pd"] for res in detections(e, p, coarse, draws=UNCERTAINTY_DRAWS, seed=seed)]
             at[sign] = {level: crossing_range(coarse, pd, level) for level in LEVELS}
         for level in LEVELS:
             shifts[level].append(0.5 * (at[1][level] - at[-1][level]))

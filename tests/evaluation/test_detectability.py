@@ -13,6 +13,7 @@ from clbeam.evaluation.detectability import (
     Pipe,
     absorption_db_per_m,
     band,
+    channel_model,
     detection,
     echo_spectrum,
     line_response,
@@ -267,3 +268,51 @@ def test_fast_integral_along_the_pipe_matches_the_sum_term_by_term(absorption, h
         direct = d._along_pipe(env, pipe, r, f, geo)
         fast = d._along_pipe_fast(env, pipe, r, f, geo)
         assert np.all(np.abs(fast - direct) <= _pair_bound(env, pipe, r, f)), r
+
+
+def _line4_env():
+    return Environment(load_scene("line4", overrides={"record.max_range_m": 2700.0}), absorption_db_per_km=None)
+
+
+def test_a_sweeps_batch_gives_each_range_the_draws_it_gets_alone():
+    """Line 4's pipeline B (3.5 degrees off broadside: the echo integrated along the pipe): the ranges drawn
+    together equal each drawn alone, to rounding."""
+    from clbeam.evaluation.detectability import detections
+
+    env, pipe = _line4_env(), Pipe(heading_deg=-3.5)
+    ranges = [300.0, 450.0, 1200.0]
+    together = detections(env, pipe, ranges, draws=256)
+    for r, res in zip(ranges, together):
+        alone = detection(env, pipe, r, draws=256)
+        assert res["pd"] == alone["pd"] and res["echo_db"] == alone["echo_db"]
+        np.testing.assert_allclose(res["cf_refined"], alone["cf_refined"], rtol=1e-9)
+
+
+def test_draws_are_continuous_in_the_covariances():
+    """Common random numbers: the reverberation's spectrum changed by parts in 1e12 (rounding) moves every
+    draw's smoothed CF by about as little (the principal root is continuous; eigenvectors scaled jump
+    where eigenvalues meet, as they do here)."""
+    env, pipe = _line4_env(), Pipe(heading_deg=-3.5)
+    model, levels = channel_model(env, pipe, 1200.0)
+    wobble = 1 + 1e-12 * np.random.default_rng(1).standard_normal(model.frequency_hz.size)
+    nudged = replace(model, reverberation=tuple((dens * wobble, step) for dens, step in model.reverberation))
+    kw = dict(clutter=levels["clutter"], sound_speed_m_s=env.c, draws=512, seed=0)
+    a = monte_carlo_tests(model, env.tests, **kw)["cf_refined"]
+    b = monte_carlo_tests(nudged, env.tests, **kw)["cf_refined"]
+    np.testing.assert_allclose(b, a, rtol=1e-8)
+
+
+def test_fast_integral_gives_the_pd_of_the_sum_term_by_term(monkeypatch):
+    """Line 4's pipelines at their headings: the same draws give the same Pd with the echo integrated
+    along the pipe either way (the two differ by far less than any draw's distance to a threshold)."""
+    from clbeam.evaluation import detectability as d
+
+    env = _line4_env()
+    ranges = [250.0, 500.0, 1000.0]
+    fast = {h: d.detections(env, Pipe(heading_deg=h), ranges, draws=256) for h in (-3.5, -5.0)}
+    d._ALONG_CACHE.clear()
+    monkeypatch.setattr(d, "_along_pipe_fast", d._along_pipe)
+    for h, rows in fast.items():
+        for a, b in zip(rows, d.detections(env, Pipe(heading_deg=h), ranges, draws=256)):
+            assert a["pd"] == b["pd"] and a["echo_db"] == pytest.approx(b["echo_db"], abs=1e-6)
+    d._ALONG_CACHE.clear()
