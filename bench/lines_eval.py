@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from clbeam.evaluation.line_truth import score_survey
+from clbeam.evaluation.line_truth import CHANCE_OFFSETS_M, score_survey
 from clbeam.imaging.imager import ImagingOptions
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.model.grid import PolarGrid
@@ -49,7 +49,6 @@ FAMILY_PINGS = 40
 #: the targets of the validation summary: on its line over this share of its detectable pings, position RMS and
 #: burial error within these (m), pipelines up to this angle from nadir (degree)
 ON_LINE_TARGET, POSITION_TARGET_M, BURIAL_TARGET_M, NADIR_LIMIT_DEG = 0.9, 0.5, 0.5, 60.0
-CHANCE_NOTE = "15 and 30 m to either side"
 
 
 def load_spec(spec: str):
@@ -108,7 +107,8 @@ def split_summary(split: str, scored: list, clutter_km: float, clutter_false: in
            f"{covered.sum()} ({100 * covered.mean():.0f} %, nominal 95 %)"]
     if unseen:
         out.append(f"{split}: of these, {len(unseen)} with no more pings with a detection near them than their "
-                   f"copies {CHANCE_NOTE} (their detectable pings are mostly the clutter's): " + ", ".join(unseen))
+                   f"copies {' and '.join(f'{d:g}' for d in sorted({abs(v) for v in CHANCE_OFFSETS_M}))} m beyond its "
+                   "crossing and its image (their detectable pings are mostly the clutter's): " + ", ".join(unseen))
     if clutter_km > 0:
         out.append(f"{split}: {clutter_false} false pipeline line(s) over {clutter_km:.2f} km of clutter-only survey "
                    f"({clutter_false / clutter_km:.2f} per km)")

@@ -21,7 +21,8 @@ track, the main-lobe arcs of Holland et al. 2024); the errors are taken to
 the nearer of the two.
 * **seen above chance**: whether the target's detectable pings are more
   than the clutter gives any place: the same count at copies of the target
-  shifted across the track (:data:`CHANCE_OFFSETS_M`) sets the chance rate
+  beyond its places across the track (:data:`CHANCE_OFFSETS_M` beyond the
+  span of its crossing and its image) sets the chance rate
   of a ping, and the target is seen when its count is improbable under it
   (binomial tail below :data:`SEEN_P_VALUE`).  In dense clutter a pipe the
   imaging does not show still has detections within ``match_m`` in most
@@ -49,8 +50,8 @@ from scipy.stats import binom
 
 #: distance across the track within which a detection or a line is on a target (m)
 MATCH_M = 2.0
-#: cross-track shifts of a target's copies that measure the chance of a detection near it (m): beyond the
-#: widest smear of a pipe's echoes, within the clutter around it
+#: cross-track shifts of a target's copies that measure the chance of a detection near it, from the far edge of
+#: the span of its crossing and its image on each side (m): clear of its echoes, within the clutter around it
 CHANCE_OFFSETS_M = (-30.0, -15.0, 15.0, 30.0)
 #: a target whose detectable pings have a binomial tail under the chance rate below this is seen above chance
 SEEN_P_VALUE = 1e-3
@@ -195,17 +196,26 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
 
 def _above_chance(truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, target: int, count: int,
                   match_m: float) -> tuple[float, bool]:
-    """The mean count of pings with a detection within ``match_m`` of the target's copies shifted by
-    :data:`CHANCE_OFFSETS_M`, and whether ``count`` (the target's own) is improbable under that rate: a
-    one-sided binomial tail over the pings the target crosses below :data:`SEEN_P_VALUE`."""
-    crossing = int(np.count_nonzero(np.isfinite(truth.y[:, target])))
+    """The mean count of pings with a detection within ``match_m`` of the target's copies, and whether
+    ``count`` (the target's own) is improbable under that rate: a one-sided binomial tail over the pings the
+    target crosses below :data:`SEEN_P_VALUE`.
+
+    The copies lie :data:`CHANCE_OFFSETS_M` beyond the span of the target's two places in each ping (its
+    crossing and its specular image, ``y sin^2 a`` apart for a pipe at ``a`` to the track), so that neither
+    its echoes nor the arc between them fall in a copy's window."""
+    y, image = truth.y[:, target], truth.image_y[:, target] if truth.image_y is not None else truth.y[:, target]
+    lo, hi = np.fmin(y, image), np.fmax(y, image)
+    crossing = int(np.count_nonzero(np.isfinite(lo)))
     if crossing == 0:
         return math.nan, False
-    copies = [np.unique(det_ping[truth.distance(det_ping, det_y + shift, target) <= match_m]).size
-              for shift in CHANCE_OFFSETS_M]
+    at = np.clip(det_ping, 0, y.size - 1)
+    copies = []
+    for shift in CHANCE_OFFSETS_M:
+        centre = (hi + shift) if shift > 0 else (lo + shift)
+        copies.append(np.unique(det_ping[np.abs(det_y - centre[at]) <= match_m]).size)
     chance = float(np.mean(copies))
     rate = min(max(chance, 0.5) / crossing, 1.0)  # half a ping at least: no copy hit is no proof of a zero rate
-    return chance, bool(binom.sf(count - 1, crossing, rate) < SEEN_P_VALUE)
+    return chance, bool(binom.sf(min(count, crossing) - 1, crossing, rate) < SEEN_P_VALUE)
 
 
 def score_survey(products, input_paths: list, *, match_m: float = MATCH_M) -> tuple[list, dict] | None:

@@ -124,7 +124,7 @@ def test_truth_scoring_counts_fragments_false_lines_and_errors_by_hand():
     n = 20
     truth = LineTruth(["T"], np.full((n, 1), -100.0), np.full((n, 1), 1.0), np.full((n, 1), -100.0))
     rows = [{"line": 0, "kind": "pipeline", "burial_m": 1.3}, {"line": 1, "kind": "pipeline", "burial_m": 0.9},
-            {"line": 2, "kind": "pipeline", "burial_m": 1.0}, {"line": 3, "kind": "seabed", "burial_m": 0.0}]
+            {"line": 2, "kind": "pipeline", "burial_m": 1.0}, {"line": 3, "kind": "water", "burial_m": 0.0}]
     p0, p1 = np.arange(0, 10), np.arange(12, 20)
     paths = [(p0, np.full(p0.size, -99.5)), (p1, np.full(p1.size, -100.5)), (p0, np.full(p0.size, 50.0)),
              (p0, np.full(p0.size, -100.0))]
@@ -139,26 +139,63 @@ def test_truth_scoring_counts_fragments_false_lines_and_errors_by_hand():
     assert math.isclose(r["on_line_fraction"], 10 / 18)
 
 
+def _clutter_pings(rng, n: int, lam: float, own: dict) -> tuple:
+    """Detections of ``n`` pings: uniform clutter of ``lam`` per metre across over +-400 m, and ``own[k]``
+    (a list of offsets, m) in ping ``k``."""
+    ping, y = [], []
+    for k in range(n):
+        extra = list(own.get(k, []))
+        clutter = list(rng.uniform(-400, 400, rng.poisson(lam * 800)))
+        ping += [k] * (len(clutter) + len(extra))
+        y += clutter + extra
+    return np.asarray(ping), np.asarray(y)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_target_is_seen_above_chance_only_where_its_detections_outnumber_the_clutters(seed):
     """Uniform clutter of density ``lam`` per metre across and ping puts a detection within 2 m of any place in
     a ping with probability ``1 - exp(-4 lam)`` (Poisson): the copies' mean count is that fraction of the
-    pings, within four binomial standard deviations; a target with a detection of its own in every ping is
-    seen, one with none but the clutter's is not (binomial tail against the copies' rate)."""
+    pings, within three binomial standard deviations of the four copies' mean, for a target whose specular
+    image lies 15 m nearer the track with a detection of its own there in every ping (the copies clear its
+    span: none of them counts those); that target is seen, one with nothing but the clutter is not."""
     rng = np.random.default_rng(seed)
     n, lam = 60, 0.05
-    truth = LineTruth(["T", "U"], np.tile([-100.0, 200.0], (n, 1)), np.ones((n, 2)), np.tile([-100.0, 200.0], (n, 1)))
-    ping, y = [], []
-    for k in range(n):
-        clutter = rng.uniform(-400, 400, rng.poisson(lam * 800))
-        own = [-100.0 + rng.normal(0, 0.3)]
-        ping += [k] * (clutter.size + 1)
-        y += list(clutter) + own
+    y = np.tile([-100.0, 200.0], (n, 1))
+    image = np.tile([-85.0, 200.0], (n, 1))
+    truth = LineTruth(["T", "U"], y, np.ones((n, 2)), image)
+    ping, det_y = _clutter_pings(rng, n, lam, {k: [-85.0 + rng.normal(0, 0.3)] for k in range(n)})
     lines = SurveyLines([], [], np.zeros(0), 0, None, 1.0, [])
-    scored, _ = score_lines(lines, truth, np.asarray(ping), np.asarray(y), 1.0)
-    expected = n * (1 - np.exp(-4 * lam))
-    sigma = np.sqrt(n * (1 - np.exp(-4 * lam)) * np.exp(-4 * lam) / 4)  # the mean of four copies' counts
+    scored, _ = score_lines(lines, truth, ping, det_y, 1.0)
+    p = 1 - np.exp(-4 * lam)
     for r in scored:
-        assert abs(r["chance_pings"] - expected) < 4 * sigma + 1
+        assert abs(r["chance_pings"] - n * p) < 3 * np.sqrt(n * p * (1 - p) / 4)
     assert scored[0]["seen"] and scored[0]["detectable_pings"] == n
     assert not scored[1]["seen"]
+
+
+def test_seen_above_chance_is_the_binomial_tail_against_the_copies_rate():
+    """No clutter but one detection at each copy in the first ``c`` pings: the chance rate is ``c / n``, and a
+    target with ``m`` detectable pings of ``n`` is seen exactly when scipy's binomial tail P(X >= m) is below
+    1e-3 (checked on both sides of the threshold); a target crossing 3 pings is seen in none of them against a
+    rate of half a ping (the floor), since P(X >= 3) = (0.5/3)^3 is above it."""
+    from scipy.stats import binom
+
+    from clbeam.evaluation.line_truth import CHANCE_OFFSETS_M, SEEN_P_VALUE
+
+    n, c = 40, 4
+    rate = c / n
+    m_seen = next(m for m in range(n + 1) if binom.sf(m - 1, n, rate) < SEEN_P_VALUE)
+    for m, seen in ((m_seen, True), (m_seen - 1, False)):
+        truth = LineTruth(["T"], np.full((n, 1), 0.0), np.ones((n, 1)), np.full((n, 1), 0.0))
+        own = {k: [0.0] for k in range(m)}
+        for k in range(c):
+            own.setdefault(k, []).extend(CHANCE_OFFSETS_M)
+        ping, det_y = _clutter_pings(np.random.default_rng(0), n, 0.0, own)
+        r = score_lines(SurveyLines([], [], np.zeros(0), 0, None, 1.0, []), truth, ping, det_y, 1.0)[0][0]
+        assert r["chance_pings"] == c and r["detectable_pings"] == m and r["seen"] is seen
+    few = np.full((n, 1), np.nan)
+    few[:3] = 50.0
+    ping, det_y = _clutter_pings(np.random.default_rng(0), n, 0.0, {k: [50.0] for k in range(3)})
+    r = score_lines(SurveyLines([], [], np.zeros(0), 0, None, 1.0, []), LineTruth(["F"], few, np.ones((n, 1)), few),
+                    ping, det_y, 1.0)[0][0]
+    assert (0.5 / 3) ** 3 > SEEN_P_VALUE and r["detectable_pings"] == 3 and not r["seen"]
