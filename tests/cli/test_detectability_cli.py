@@ -26,10 +26,11 @@ def test_one_row_per_pipeline_at_its_mean_range(tmp_path):
 
 
 def test_a_fifty_range_sweep_takes_under_ten_seconds(tmp_path):
-    """Broadside pipes (the stationary-phase echo; oblique ones integrate along the pipe and take longer)."""
+    """At the pipelines' own headings: B and C cross 3.5 and 5 degrees off broadside, their echoes summed
+    along the pipe (the slower case)."""
     out = tmp_path / "sweep.csv"
     t0 = time.perf_counter()
-    assert main(["detectability", "line4", "-o", str(out), "--ranges", "220:955:15", "--heading", "0", "-q"]) == 0
+    assert main(["detectability", "line4", "-o", str(out), "--ranges", "220:955:15", "-q"]) == 0
     elapsed = time.perf_counter() - t0
     rows = _rows(out)
     assert len(rows) == 3 * 50 and {"target", "range_m", "pd"} <= set(rows[0])
