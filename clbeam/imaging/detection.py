@@ -505,7 +505,8 @@ def exponential_sum_sf(y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     s = top - 1.0 / yy   # K'(s) >= y here: its largest term alone is y
     for _ in range(SADDLEPOINT_MAX_STEPS):
         r = col / (1.0 - col * s)
-        step = (r.sum(axis=0) - yy) / np.sum(r * r, axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):   # 0/0 far below the mean: NaN, no step
+            step = (r.sum(axis=0) - yy) / np.sum(r * r, axis=0)
         lower = s - step
         down = lower < s
         if not down.any():   # every one at its root: a further step would not lower it
@@ -519,6 +520,8 @@ def exponential_sum_sf(y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     # at the mean the two terms cancel: their limit, 1/2 - k3 / (6 sqrt(2 pi) k2^1.5) (k2, k3 the cumulants)
     near_mean = np.abs(yy - mean) < 1e-4 * mean
     p = np.where(near_mean, 0.5 - 2.0 * float(np.sum(lam**3)) / (6.0 * math.sqrt(2 * math.pi) * var**1.5), p)
+    # far into either tail the saddlepoint's terms underflow (y under about 1e-154 of the mean): the limit there
+    p = np.where(np.isfinite(p), p, np.where(yy < mean, 1.0, 0.0))
     p = np.where(np.isfinite(y) & (y > 0), np.clip(p, 0.0, 1.0), np.where(y > 0, 0.0, 1.0))
     return p
 

@@ -144,6 +144,19 @@ def test_saddlepoint_solved_to_float64_against_the_closed_form_lugannani_rice():
     assert exponential_sum_sf(np.array([1.0]), np.array([1.0]))[0] == pytest.approx(0.5 - 2 / (6 * np.sqrt(2 * np.pi)))
 
 
+def test_saddlepoint_tail_far_below_the_mean_is_one_as_the_closed_form():
+    """Below about 1e-154 of the mean the saddlepoint's terms underflow; the exact tail of one exponential,
+    ``exp(-y)``, and of three distinct ones (partial fractions) is 1 to float64 there, and so must the
+    approximation be (not NaN)."""
+    from clbeam.imaging.detection import exponential_sum_sf
+
+    y = np.array([1e-300, 1e-200, 1e-160, 1e-12])
+    np.testing.assert_allclose(exponential_sum_sf(y, np.array([1.0])), np.exp(-y), rtol=1e-12)
+    lam = np.array([0.5, 0.3, 0.2])
+    exact = sum(np.prod([li / (li - lj) for lj in lam if lj != li]) * np.exp(-y / li) for li in lam)
+    np.testing.assert_allclose(exponential_sum_sf(y, lam), exact, rtol=1e-12)
+
+
 def _clutter_grid():
     """The paper's cell size, 0.2 m x 0.1 degree, over 100 m x 40 degrees, and the SBP29's clutter window and
     guard (+-10.7 m and +-6.6 degrees; +-1.07 m and +-2.2 degrees)."""
