@@ -507,7 +507,7 @@ def exponential_sum_sf(y: np.ndarray, lam: np.ndarray) -> np.ndarray:
         r = col / (1.0 - col * s)
         with np.errstate(invalid="ignore", divide="ignore"):   # 0/0 far below the mean: NaN, no step
             step = (r.sum(axis=0) - yy) / np.sum(r * r, axis=0)
-        lower = s - step
+            lower = s - step
         down = lower < s
         if not down.any():   # every one at its root: a further step would not lower it
             break
