@@ -246,6 +246,9 @@ class Scattering:
         require(self.depth_spread_m >= 0, OptionError, f"scattering.depth_spread_m must be >= 0 m, got {self.depth_spread_m}")
 
 
+#: the deepest spread of the discrete seabed's scatterers about the interface (m): they are taken as the
+#: interface's, in the water's travel times, which holds to a small fraction of the band's wavelengths
+SEABED_SPREAD_MAX_M = 0.5
 PHYSICS_MODELS = ("specular", "discrete")
 """Values of ``model.physics``: the smooth-pipe and importance-sampled model, or discrete point scatterers."""
 TX_PATTERNS = ("band", "centre")
@@ -578,9 +581,13 @@ class Discrete:
         for key in ("seabed_density_per_m2", "subbottom_density_per_m2"):
             v = getattr(self, key)
             require(0 < v <= 10, OptionError, f"discrete.{key} must be within (0, 10] per m², got {v}")
-        for key in ("seabed_depth_m", "subbottom_depth_m"):
-            v = getattr(self, key)
-            require(0 <= v <= 5, OptionError, f"discrete.{key} must be within 0-5 m, got {v}")
+        # the seabed's scatterers are the interface's (no refraction, transmission or attenuation): a spread
+        # deeper than a few wavelengths' fraction would put buried scatterers in the water
+        require(0 <= self.seabed_depth_m <= SEABED_SPREAD_MAX_M, OptionError,
+                f"discrete.seabed_depth_m must be within 0-{SEABED_SPREAD_MAX_M:g} m (the seabed's scatterers are "
+                f"taken as the interface's, not buried), got {self.seabed_depth_m}")
+        require(0 <= self.subbottom_depth_m <= 5, OptionError,
+                f"discrete.subbottom_depth_m must be within 0-5 m, got {self.subbottom_depth_m}")
         require(0.005 <= self.pipe_spacing_m <= 2, OptionError,
                 f"discrete.pipe_spacing_m must be within 0.005-2 m, got {self.pipe_spacing_m}")
         require(-60 <= self.pipe_strength_db <= 20, OptionError,

@@ -304,10 +304,12 @@ def test_discrete_scene_keys_are_checked_with_one_line_errors():
         load_scene("point", overrides={"model.physics": "discrete", "discrete.seabed_density_per_m2": 0.0})
     with pytest.raises(OptionError, match="subbottom_depth_m"):
         load_scene("line1", overrides={"model.physics": "discrete", "discrete.subbottom_depth_m": 25.0})
-    for err in (OptionError,):
-        with pytest.raises(err) as info:
-            load_scene("avo2", overrides={"model.physics": "discrete"})
-        assert "\n" not in str(info.value) and "province" in str(info.value)
+    with pytest.raises(OptionError, match="seabed_depth_m must be within 0-0.5 m") as info:
+        load_scene("line1", overrides={"model.physics": "discrete", "discrete.seabed_depth_m": 2.0})
+    assert "\n" not in str(info.value)
+    with pytest.raises(OptionError) as info:
+        load_scene("avo2", overrides={"model.physics": "discrete"})
+    assert "\n" not in str(info.value) and "province" in str(info.value)
 
 
 def test_the_built_in_discrete2_scene_is_the_two_pipe_survey_it_describes():
