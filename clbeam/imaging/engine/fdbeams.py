@@ -77,7 +77,7 @@ DROPPED_ENERGY = 1e-9
 #: the zones' nearest range is at least this many times the largest offset: ``kappa`` at most (4/3)^2
 NEAR_FIELD_OFFSETS = 4.0
 #: FFT worker threads
-WORKERS = os.cpu_count() or 1
+WORKERS = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 @dataclass(frozen=True)
@@ -313,7 +313,8 @@ def evaluate_at(spectrum: np.ndarray, first_bin: int, length: int, positions: np
     n_bin, m = spectrum.shape[-1], x.size
     step = float(x[1] - x[0]) if m > 1 else 0.0
     require(m < 3 or bool(np.allclose(np.diff(x), step, rtol=0, atol=1e-9 * max(abs(step), 1.0))), GridError,
-            "frequency-domain beams need uniformly spaced ranges")
+            f"frequency-domain beams need uniformly spaced ranges, got steps from {np.diff(x).min():.6g} to "
+            f"{np.diff(x).max():.6g} samples")
     czt = CZT(n_bin, m, w=np.exp(2j * np.pi * step / length), a=np.exp(-2j * np.pi * x[0] / length))
     carrier = np.exp(2j * np.pi * ((first_bin * x / length) % 1.0))
     with scipy.fft.set_workers(WORKERS):          # the transform's FFTs on every core
@@ -352,7 +353,8 @@ def frequency_beam_sums(inp, grid: PolarGrid, *, time_domain, steer=steer_numpy,
     require(inp.tables is None and inp.table_source is None, OptionError,
             "frequency-domain beams need straight rays; image through a sound-speed profile with time-domain beams")
     require(grid.shape[1] < 3 or bool(np.allclose(np.diff(grid.ranges_m), grid.ranges_m[1] - grid.ranges_m[0])),
-            GridError, "frequency-domain beams need uniformly spaced ranges")
+            GridError, "frequency-domain beams need uniformly spaced ranges, got steps from "
+            f"{np.diff(grid.ranges_m).min():.6g} to {np.diff(grid.ranges_m).max():.6g} m")
     zones = zone_plan(inp, grid, margin=margin) if zones is None else zones
     shape = grid.shape
     out = BeamSums(s=np.zeros(shape, np.complex128), q=np.zeros(shape), m=np.zeros(shape, np.int32),
