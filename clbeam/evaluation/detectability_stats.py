@@ -265,7 +265,7 @@ def _offset_tests(a: np.ndarray, b: np.ndarray, models: list, tests: Tests, n_gr
 
 
 def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, sound_speed_m_s: float,
-                      draws: int = DEFAULT_DRAWS, seed: int = 0, exact: bool = False) -> dict:
+                      draws: int = DEFAULT_DRAWS, seed: int = 0, exact: bool = False, offsets: int = GRID_OFFSETS) -> dict:
     """Probability that the pipe's echo gives a peak that passes the detection test, by Monte Carlo.
 
     Parameters
@@ -280,13 +280,16 @@ def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, soun
     sound_speed_m_s : float
         Sound speed of the image grid (m/s): lags are ``2 Δr / c``.
     draws : int
-        Draws (split evenly over :data:`GRID_OFFSETS` offsets of the echo from the nodes).
+        Draws (split evenly over the offsets of the echo from the grid's nodes).
     seed : int
         Seed (common random numbers across calls give smooth curves).
     exact : bool
         Draw every channel's noise (slow); by default the noise is drawn in the few directions the echo
         and the reverberation span and the rest of its power over the channels, a sum of ``M − q``
         correlated exponentials, as a Gaussian of the same mean and covariance (:func:`_channel_sums`).
+    offsets : int
+        Offsets of the echo from the grid's nodes, at the middles of equal parts of a cell (the echo's
+        offset is uniform over a cell).
 
     Returns
     -------
@@ -296,11 +299,11 @@ def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, soun
         ``cf_median``, and whether the clutter test applied (``reverberation_limited``).
     """
     return monte_carlo_batch([model], tests, clutters=[clutter], sound_speed_m_s=sound_speed_m_s, draws=draws,
-                             seed=seed, exact=exact)[0]
+                             seed=seed, exact=exact, offsets=offsets)[0]
 
 
 def monte_carlo_batch(models: list, tests: Tests, *, clutters, sound_speed_m_s: float, draws: int = DEFAULT_DRAWS,
-                      seed: int = 0, exact: bool = False) -> list[dict]:
+                      seed: int = 0, exact: bool = False, offsets: int = GRID_OFFSETS) -> list[dict]:
     """:func:`monte_carlo_tests` of many models on one band (a sweep's ranges) at once.
 
     Each model gets the very draws it would get alone (the same seed, the same normals through the
@@ -320,24 +323,24 @@ def monte_carlo_batch(models: list, tests: Tests, *, clutters, sound_speed_m_s: 
     out = [None] * len(models)
     for idx in groups.values():
         res = _group_tests([models[i] for i in idx], tests, np.array([clutters[i] for i in idx], dtype=np.float64),
-                           sound_speed_m_s, draws, seed, exact)
+                           sound_speed_m_s, draws, seed, exact, offsets)
         for i, r in zip(idx, res):
             out[i] = r
     return out
 
 
 def _group_tests(models: list, tests: Tests, clutter: np.ndarray, sound_speed_m_s: float, draws: int, seed: int,
-                 exact: bool) -> list[dict]:
+                 exact: bool, offsets: int) -> list[dict]:
     """:func:`monte_carlo_batch` of models whose reverberation arrives from as many directions."""
     rng = np.random.default_rng(seed)
     dr = tests.range_step_m
     half = SEARCH_CELLS + 3
-    per = max(draws // GRID_OFFSETS, 1)
+    per = max(draws // offsets, 1)
     contrast_applies = (tests.min_contrast_db is not None) & (10 * np.log10(np.maximum(clutter, 1e-300)) >= 3.0)
     results = {k: [] for k in ("cf", "snr", "contrast", "cf_ref")}
     # grid cells about the echo at each offset, then the refined point (the echo) with its smoothing neighbours
-    cell_sets = [np.r_[((j + 0.5) / GRID_OFFSETS - 0.5) * dr + dr * np.arange(-half, half + 1), dr * np.arange(-3, 4)]
-                 for j in range(GRID_OFFSETS)]
+    cell_sets = [np.r_[((j + 0.5) / offsets - 0.5) * dr + dr * np.arange(-half, half + 1), dr * np.arange(-3, 4)]
+                 for j in range(offsets)]
     lag_sets = [2.0 * cells / sound_speed_m_s for cells in cell_sets]
     cov_noise, cov_rev, wheres = _lag_covariances(models, lag_sets)
     for lags, where in zip(lag_sets, wheres):
