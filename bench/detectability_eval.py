@@ -26,11 +26,12 @@ BURIALS = (1.0, 2.0)
 
 def predicted(seabed: str) -> dict:
     """``{(burial, range): Pd}`` of the model on the seabed's validation scene."""
-    from clbeam.evaluation.detectability import Environment, Pipe, detection
+    from clbeam.evaluation.detectability import Environment, Pipe, detections
     from clbeam.evaluation.detectability_validation import validation_scene
 
     env = Environment(validation_scene(seabed, RANGES, BURIALS), absorption_db_per_km=0.0)
-    return {(b, r): detection(env, Pipe(burial_m=b), r, draws=4096)["pd"] for b in BURIALS for r in RANGES}
+    return {(b, r): res["pd"] for b in BURIALS
+            for r, res in zip(RANGES, detections(env, Pipe(burial_m=b), RANGES, draws=4096))}
 
 
 def measured(seabed: str, seeds, pings: int) -> dict:
