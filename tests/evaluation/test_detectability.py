@@ -316,3 +316,14 @@ def test_fast_integral_gives_the_pd_of_the_sum_term_by_term(monkeypatch):
         for a, b in zip(rows, d.detections(env, Pipe(heading_deg=h), ranges, draws=256)):
             assert a["pd"] == b["pd"] and a["echo_db"] == pytest.approx(b["echo_db"], abs=1e-6)
     d._ALONG_CACHE.clear()
+
+
+def test_an_echo_on_a_node_passes_the_grid_whenever_it_passes_at_the_echo():
+    """``offsets=1`` puts the echo on a node: the grid's central cell is the refined point, its smoothed CF
+    the same draw's, so the grid passes wherever the refined point does (at 2000 m, on the four offsets'
+    plateau of Pd 0.5, where the ±3/8 pair misses)."""
+    env = _line4_env()
+    model, levels = channel_model(env, Pipe(), 2000.0)
+    on_node = monte_carlo_tests(model, env.tests, clutter=levels["clutter"], sound_speed_m_s=env.c, draws=512,
+                                offsets=1)
+    assert on_node["p_cf"] >= np.mean(on_node["cf_refined"] > env.tests.threshold)
