@@ -386,10 +386,12 @@ def _sparse_box_maxima(x: np.ndarray, box_a: np.ndarray, box_r: np.ndarray) -> n
 
 def _nearest(axis: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Index of the node of the increasing ``axis`` nearest each value (the first of two equally near)."""
-    hi = np.clip(np.searchsorted(axis, values), 1, max(axis.size - 1, 1))
+    if axis.size < 2:   # one node: the nearest of every value
+        return np.zeros(np.shape(values), dtype=np.int64)
+    hi = np.clip(np.searchsorted(axis, values), 1, axis.size - 1)
     lo = hi - 1
     pick_hi = np.abs(axis[hi] - values) < np.abs(values - axis[lo])
-    return np.where(pick_hi, hi, lo) if axis.size > 1 else np.zeros(values.size, dtype=np.int64)
+    return np.where(pick_hi, hi, lo)
 
 
 def _bounds(axis: np.ndarray, k: np.ndarray, halves: tuple) -> list[np.ndarray]:

@@ -509,3 +509,19 @@ def test_the_floors_quantile_is_numpys_bit_for_bit():
         values = values.astype(np.float32 if trial % 2 else np.float64)
         q = float(rng.choice([0.0, 1.0, 0.1, rng.random()]))
         assert quantile(values, q) == float(np.quantile(values, q))
+
+
+@pytest.mark.parametrize("shape", [(1, 200), (50, 1)])
+def test_contrast_on_a_grid_of_one_angle_or_one_range_is_the_guards_echo_and_no_clutter(shape):
+    """A grid of one angle (or one range): every window outside the guard's cross is empty, so the clutter
+    is NaN, and the echo is the largest cell within the guard along the one axis there is (written out)."""
+    rng = np.random.default_rng(4)
+    intensity = rng.exponential(1.0, shape)
+    ranges = np.arange(shape[1]) * 0.2 + 100.0
+    angles = np.arange(shape[0]) * 0.1 - 2.0
+    r0, a0 = ranges[shape[1] // 2], angles[shape[0] // 2]
+    echo, clutter = local_contrast(intensity, ranges, angles, [{"range_m": r0, "angle_deg": a0}],
+                                   window=(10.0, 5.0), guard=(1.0, 2.0))
+    near = (np.abs(angles[:, None] - a0) <= 2.0 + 1e-9) & (np.abs(ranges[None, :] - r0) <= 1.0 + 1e-9)
+    assert echo[0] == pytest.approx(10 * np.log10(intensity[near].max()), rel=1e-12)
+    assert np.isnan(clutter[0])
