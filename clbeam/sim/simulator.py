@@ -77,6 +77,7 @@ built-in scenes and what is left out.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 from pathlib import Path
@@ -136,6 +137,25 @@ __all__ = [
     "reflection_coefficient", "refracted_path", "scene_from_mapping", "simulate", "transmit_beamwidth_deg",
     "transmit_far_field_m", "two_way_sediment_path_m", "write",
 ]
+
+log = logging.getLogger(__name__)
+
+
+def unused_under_discrete(scene: Scene) -> list[str]:
+    """The keys of ``scene`` set away from their defaults that the discrete-scatterer physics does not use
+    (docs/simulator.md): a pipe's ``roughness`` (every discrete pipe scatters along its length), an
+    interface's ``scattering.per_cell`` and ``depth_spread_m`` (its scatterers' density and spread are the
+    ``[discrete]`` table's) and ``model.line_spacing_m``."""
+    out = [f"target '{t.name}' roughness" for t in scene.targets if isinstance(t, LineTarget) and t.roughness > 0]
+    default = Scattering()
+    for name, layer in (("seabed", scene.seabed), ("subbottom", scene.subbottom)):
+        sc = None if layer is None else layer.scattering
+        for key in ("per_cell", "depth_spread_m"):
+            if sc is not None and getattr(sc, key) != getattr(default, key):
+                out.append(f"{name}.scattering.{key}")
+    if scene.model.line_spacing_m is not None:
+        out.append("model.line_spacing_m")
+    return out
 
 
 class Simulator:
@@ -205,6 +225,10 @@ class Simulator:
         self._discrete = None
         if sc.model.physics == "discrete":
             self._discrete = DiscreteModel(self.propagation, seed=self.seed, x_window=self._x_window)
+            unused = unused_under_discrete(sc)
+            if unused:
+                log.warning("scene '%s': model.physics = \"discrete\" does not use %s (docs/simulator.md)",
+                            sc.name, ", ".join(unused))
         self._fields = [] if self._discrete else scatterer_fields(self.propagation, seed=self.seed,
                                                                   x_window=self._x_window)
         track_m = (max(sc.survey.pings, int(self.indices.max()) + 1) - 1) * sc.survey.step_m

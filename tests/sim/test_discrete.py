@@ -325,3 +325,27 @@ def test_the_built_in_discrete2_scene_is_the_two_pipe_survey_it_describes():
     y, z, sz = (ds[f"truth_target_{k}"].values for k in ("y", "z", "seabed_z"))
     assert 330.0 <= y[0, 0] < y[1, 0] <= 350.0 and -460.5 <= y[1, 1] < y[0, 1] <= -420.0
     assert np.allclose(z - sz, [[1.0, 1.5], [1.0, 1.5]]) and np.allclose(ds.truth_target_angle.values, [5.0, -12.0])
+
+
+def test_keys_the_discrete_physics_does_not_use_are_named_in_one_warning(caplog):
+    """Set away from their defaults, a pipe's roughness, an interface's per_cell and depth_spread_m and
+    model.line_spacing_m are named in one warning when the scene is simulated under the discrete physics; at
+    their defaults nothing is said."""
+    import logging
+
+    from clbeam.sim.simulator import unused_under_discrete
+
+    plain = load_scene("discrete2")
+    assert [t.roughness for t in plain.targets if isinstance(t, LineTarget)] and unused_under_discrete(plain) == []
+    import dataclasses
+
+    name = next(t.name for t in plain.targets if isinstance(t, LineTarget))
+    scene = load_scene("discrete2", overrides={"seabed.scattering.per_cell": 2.0, "model.line_spacing_m": 0.05})
+    rough = [dataclasses.replace(t, roughness=1.5) if t.name == name else t for t in scene.targets]
+    scene = dataclasses.replace(scene, targets=type(scene.targets)(rough))
+    expected = [f"target '{name}' roughness", "seabed.scattering.per_cell", "model.line_spacing_m"]
+    assert unused_under_discrete(scene) == expected
+    with caplog.at_level(logging.WARNING, logger="clbeam.sim.simulator"):
+        Simulator(scene, seed=0)
+    warned = [r.getMessage() for r in caplog.records if "does not use" in r.getMessage()]
+    assert len(warned) == 1 and all(key in warned[0] for key in expected) and "\n" not in warned[0]
