@@ -104,7 +104,9 @@ def ping_truth(prop: Propagation, g: PingGeometry, lines: list) -> dict:
         ``x = 0``, points where they are; ``z`` is below the transducers'
         mean depth (heave is in the source and element positions, not in the
         frame) (m).  ``image_y, image_z``: where the imager should show the
-        echo, from the point of the target nearest the source
+        echo, from the point of the target nearest the source (of a line
+        under the discrete physics, from its crossing: its scatterers'
+        echoes are incoherent, with no specular point)
         (:func:`image_position`; with a sound-speed profile, where an imager
         using that profile shows it) (m).  ``u``: that point's direction
         cosine on the transmit column (the beam's −3 dB half-width is about
@@ -124,8 +126,11 @@ def ping_truth(prop: Propagation, g: PingGeometry, lines: list) -> dict:
             if t.gap_x_m and t.gap_x_m[0] <= g.along_m <= t.gap_x_m[1] or not len(pts["x"]):
                 continue  # no pipe crosses this ping's plane: NaN
             out["x"][k], out["y"][k], out["z"][k], out["angle"][k] = 0.0, y, z, ang
-            rel = np.stack([pts["x"] - g.along_m, pts["y"], pts["z"]], axis=1) - g.source
-            nearest = rel[np.argmin(np.einsum("ij,ij->i", rel, rel))] + g.source
+            if sc.model.physics == "discrete":  # an incoherent pipe's echo is centred on its crossing
+                nearest = np.array([0.0, y, z])
+            else:
+                rel = np.stack([pts["x"] - g.along_m, pts["y"], pts["z"]], axis=1) - g.source
+                nearest = rel[np.argmin(np.einsum("ij,ij->i", rel, rel))] + g.source
         if prop.svp is not None:
             out["image_y"][k], out["image_z"][k], out["u"][k] = _traced_image(prop, g, t, nearest)
         else:

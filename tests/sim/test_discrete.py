@@ -349,3 +349,25 @@ def test_keys_the_discrete_physics_does_not_use_are_named_in_one_warning(caplog)
         Simulator(scene, seed=0)
     warned = [r.getMessage() for r in caplog.records if "does not use" in r.getMessage()]
     assert len(warned) == 1 and all(key in warned[0] for key in expected) and "\n" not in warned[0]
+
+
+def test_a_discrete_pipes_image_is_its_crossing_not_a_specular_point():
+    """Under the discrete physics a pipe's echoes are incoherent, so the truth's image of a line is where its
+    crossing images (with the sediment as fast as the water, the crossing itself), while the specular model's
+    twin images its nearest point, ``y sin^2 a`` nearer the track (closed form, straight rays, flat seabed)."""
+    import dataclasses
+
+    disc = load_scene("discrete2")
+    spec = dataclasses.replace(disc, model=dataclasses.replace(disc.model, physics="specular"), discrete=None)
+    for scene, specular in ((disc, False), (spec, True)):
+        sim = Simulator(scene, seed=0)
+        t = sim.truth(sim.geometry(3))["target"]
+        lines = [k for k, tg in enumerate(scene.targets) if isinstance(tg, LineTarget) and np.isfinite(t["y"][k])]
+        assert lines
+        for k in lines:
+            a = math.radians(scene.targets[k].angle_deg)
+            shift = abs(t["y"][k]) * math.sin(a) ** 2
+            if specular:
+                assert abs(abs(t["y"][k]) - abs(t["image_y"][k]) - shift) < 0.05 * shift + 0.2
+            else:
+                assert abs(t["image_y"][k] - t["y"][k]) < 1e-6 and abs(t["image_z"][k] - t["z"][k]) < 1e-6
