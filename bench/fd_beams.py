@@ -45,6 +45,8 @@ class _TimedSteering:
 
 
 def main(argv=None) -> None:
+    """Time the beam stage in the time and the frequency domain on the bench ping (ms, best of ``--repeats``)
+    and print their errors against the exact sums; ``argv``: the command line (default ``sys.argv``)."""
     from clbeam.evaluation.bench import paper_grid
     from clbeam.imaging.engine import get_engine
     from clbeam.imaging.engine.common import interp_mode

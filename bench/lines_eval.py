@@ -226,6 +226,8 @@ def time_thousand_pings(density_per_m: float = 0.05, n_pings: int = 1000) -> str
 
 
 def main(argv=None) -> None:
+    """Simulate, survey and score the scenes and family draws of the command line (``argv``, default
+    ``sys.argv``) and print the tables per split, the false-line rates and the 1,000-ping timing."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--work", default="lines_eval", type=Path)
     ap.add_argument("--scenes", default=",".join(SCENES))

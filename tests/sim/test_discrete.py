@@ -9,6 +9,8 @@ phases by chi-square, uniform depths) over several seeds, with bounds from the l
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import math
 
 import numpy as np
@@ -331,14 +333,10 @@ def test_keys_the_discrete_physics_does_not_use_are_named_in_one_warning(caplog)
     """Set away from their defaults, a pipe's roughness, an interface's per_cell and depth_spread_m and
     model.line_spacing_m are named in one warning when the scene is simulated under the discrete physics; at
     their defaults nothing is said."""
-    import logging
-
     from clbeam.sim.simulator import unused_under_discrete
 
     plain = load_scene("discrete2")
     assert [t.roughness for t in plain.targets if isinstance(t, LineTarget)] and unused_under_discrete(plain) == []
-    import dataclasses
-
     name = next(t.name for t in plain.targets if isinstance(t, LineTarget))
     scene = load_scene("discrete2", overrides={"seabed.scattering.per_cell": 2.0, "model.line_spacing_m": 0.05})
     rough = [dataclasses.replace(t, roughness=1.5) if t.name == name else t for t in scene.targets]
@@ -355,8 +353,6 @@ def test_a_discrete_pipes_image_is_its_crossing_not_a_specular_point():
     """Under the discrete physics a pipe's echoes are incoherent, so the truth's image of a line is where its
     crossing images (with the sediment as fast as the water, the crossing itself), while the specular model's
     twin images its nearest point, ``y sin^2 a`` nearer the track (closed form, straight rays, flat seabed)."""
-    import dataclasses
-
     disc = load_scene("discrete2")
     spec = dataclasses.replace(disc, model=dataclasses.replace(disc.model, physics="specular"), discrete=None)
     for scene, specular in ((disc, False), (spec, True)):
