@@ -251,7 +251,7 @@ def _peaks(context: PingContext, cf_smooth, intensity, grid: PolarGrid, peaks: n
     with ``refine``) before the detection test; a peak less intense than ``least_intensity`` (one the SNR
     test drops for sure: a noise-free ping has thousands on its rounding) left out."""
     if refine is not None:
-        refined = refine(peaks)
+        refined = refine(peaks, least_intensity=least_intensity)
         refined = refined.take(np.flatnonzero(~(refined.intensity < least_intensity)))
         ia, ir = ((refined.cell[:, 0], refined.cell[:, 1]) if len(refined.range_m)
                   else (np.zeros(0, int), np.zeros(0, int)))

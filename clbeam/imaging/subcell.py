@@ -74,6 +74,11 @@ ARC_SEARCH_ROUNDS = 4
 #: interpolation of the search along range, and of the rest (unless the ping is imaged with "exact")
 SEARCH_MODE = interp_mode("cubic")
 ARC_MODE = interp_mode("lanczos8")
+#: how far (dB) the searches after the range search may climb above its maximum, beyond ``1 / threshold``: along its
+#: equal-delay curve one echo's channels hold the same envelope samples, so its coherent sum there is at most
+#: ``M Q`` where a peak above the CF threshold holds about ``threshold M Q``; the smoothing and overlapping echoes
+#: took the climb to 13.7 dB (6 dB for ``1 / threshold``) on the zoo's noise-free scenes (:func:`refine_peaks`)
+SEARCH_CLIMB_MARGIN_DB = 20.0
 #: cells either side of a peak searched on the grid for its lobe's intensity maximum
 LOBE_MAX_CELLS = 16
 #: the final patch: points per axis and its step as a fraction of the search's
@@ -119,11 +124,14 @@ class RefinedPeaks:
 
 
 def subcell_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray, mode: InterpMode, *,
-                  cf_smooth: np.ndarray, intensity: np.ndarray | None, threshold: float) -> RefinedPeaks:
-    """Peaks refined (:func:`refine_peaks`) and one entry kept per echo, its most intense refinement
-    (:func:`merge_refined`: within half a range step (at least a quarter of the pulse's range resolution)
-    and a quarter of the band top's beam width), by decreasing refined CF."""
-    refined = refine_peaks(engine, inp, grid, peaks, mode, cf_smooth=cf_smooth, intensity=intensity, threshold=threshold)
+                  cf_smooth: np.ndarray, intensity: np.ndarray | None, threshold: float,
+                  least_intensity: float = 0.0) -> RefinedPeaks:
+    """Peaks refined (:func:`refine_peaks`, those that cannot reach ``least_intensity`` left out) and one
+    entry kept per echo, its most intense refinement (:func:`merge_refined`: within half a range step (at
+    least a quarter of the pulse's range resolution) and a quarter of the band top's beam width), by
+    decreasing refined CF."""
+    refined = refine_peaks(engine, inp, grid, peaks, mode, cf_smooth=cf_smooth, intensity=intensity, threshold=threshold,
+                           least_intensity=least_intensity)
     if refined.range_m.size == 0:
         return refined
     # half a range step, or a quarter of the pulse's range resolution c / 2B on grids finer than it
@@ -147,8 +155,13 @@ def beam_width_rad(inp: BeamformInput) -> float:
 
 def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray, mode: InterpMode, *,
                  cf_smooth: np.ndarray | None = None, intensity: np.ndarray | None = None,
-                 threshold: float = 0.25) -> RefinedPeaks:
+                 threshold: float = 0.25, least_intensity: float = 0.0) -> RefinedPeaks:
     """Refine coherence peaks of ``grid`` to the intensity maximum of their echo.
+
+    A noise-free ping holds tens of thousands of maxima above the CF threshold on its rounding, a hundred dB
+    under its echoes; the SNR test drops them after the refinement.  With ``least_intensity`` (the test's least
+    intensity) a peak whose range search stays more than ``1 / threshold`` and ``SEARCH_CLIMB_MARGIN_DB``
+    below it is left out before the searches along the arc (the result has fewer entries than ``peaks``).
 
     Parameters
     ----------
@@ -167,21 +180,34 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
         the most intense cell of the peak's coherent lobe along range.
     threshold : float
         The peaks' CF threshold (bounds the lobe).
+    least_intensity : float
+        Intensity (input units squared) the SNR test needs; 0 refines every peak.
     """
     peaks = np.asarray(peaks, dtype=np.int64).reshape(-1, 2)
     if len(peaks) == 0:
-        empty = np.zeros(0)
-        return RefinedPeaks(empty, empty, empty, empty, empty, peaks, np.zeros(0, dtype=np.int64))
+        return _no_peaks()
     evaluate = _Evaluator(engine, inp, grid, SEARCH_MODE)
     ia, ir = peaks[:, 0], peaks[:, 1]
     if cf_smooth is not None and intensity is not None:
         ir = lobe_maximum(cf_smooth, intensity, ia, ir, threshold)
+    climb = search_climb(threshold)
+    if least_intensity > 0 and intensity is not None and cf_smooth is not None:
+        # the lobe's most intense node, raised by the most an echo can stand above its nodes, then the climb
+        live = np.flatnonzero(~(intensity[ia, ir] * node_gain(inp, grid) * climb < least_intensity))
+        peaks, ia, ir = peaks[live], ia[live], ir[live]
+        if len(peaks) == 0:
+            return _no_peaks()
     r0, a0 = grid.ranges_m[ir], grid.angles_deg[ia]
     dr, da = _local_step(grid.ranges_m, ir), _local_step(grid.angles_deg, ia)
     # 1. along range at the cell's angle
     r_step = RANGE_SEARCH_STEP * dr
     k = np.arange(-RANGE_SEARCH_STEPS / RANGE_SEARCH_STEP, RANGE_SEARCH_STEPS / RANGE_SEARCH_STEP + 1)
-    r1 = _best(evaluate, r0[:, None] + k * r_step[:, None], np.broadcast_to(a0[:, None], (len(a0), k.size)))[0]
+    r1, _, level = _best(evaluate, r0[:, None] + k * r_step[:, None], np.broadcast_to(a0[:, None], (len(a0), k.size)))
+    if least_intensity > 0:
+        live = np.flatnonzero(~(level * climb < least_intensity))
+        peaks, r0, a0, r1, dr, da, r_step = (v[live] for v in (peaks, r0, a0, r1, dr, da, r_step))
+        if len(peaks) == 0:
+            return _no_peaks()
     # the beam's lobe is flat along the arc: a -45 dB interpolation ripple would move its maximum
     evaluate.mode = mode if mode.name == "exact" else ARC_MODE
     # 2. along the echo's equal-delay curve through that point (the grid's arc when the array sits at the centre)
@@ -200,6 +226,33 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
     centre = int(np.flatnonzero(taps[used] == 0)[0])
     return RefinedPeaks(range_m=r2, angle_deg=a2, cf_smooth=final.cf @ HANN7[used], cf=final.cf[:, centre],
                         intensity=final.intensity[:, centre], cell=peaks, n_cells=np.ones(len(peaks), dtype=np.int64))
+
+
+def search_climb(threshold: float) -> float:
+    """The most (a factor) the searches along the arc may raise a peak's intensity above its range search's:
+    ``1 / threshold`` (a CF threshold in 0-1) and ``SEARCH_CLIMB_MARGIN_DB``."""
+    return 10 ** ((10 * np.log10(1 / min(max(threshold, 1e-3), 1.0)) + SEARCH_CLIMB_MARGIN_DB) / 10)
+
+
+def node_gain(inp: BeamformInput, grid: PolarGrid) -> float:
+    """The most (a factor >= 1) an echo's intensity maximum can stand above the most intense of the grid nodes
+    within two range steps of it along range: the compressed pulse's envelope ``sinc(2 B r / c)`` (a flat band
+    ``B`` wide, the matched filter's output for the LFM) sampled every range step at the worst offset;
+    infinite without a band (nothing bounds it) or on a grid of one range."""
+    band = inp.band_hz
+    if band is None or grid.shape[1] < 2 or not band[1] > band[0]:
+        return np.inf
+    step = float(np.max(np.diff(grid.ranges_m)))
+    scaled = 2.0 * (band[1] - band[0]) * step / inp.sound_speed_m_s     # one range step in the envelope's units
+    offsets = np.linspace(0.0, 0.5, 257)[:, None] + np.arange(-2, 3)[None, :]     # the echo from its nodes
+    nearest = np.max(np.sinc(offsets * scaled) ** 2, axis=1)
+    return float(1.0 / max(np.min(nearest), 1e-30))
+
+
+def _no_peaks() -> RefinedPeaks:
+    """No refined peak."""
+    empty = np.zeros(0)
+    return RefinedPeaks(empty, empty, empty, empty, empty, np.zeros((0, 2), dtype=np.int64), np.zeros(0, dtype=np.int64))
 
 
 def lobe_maximum(cf_smooth: np.ndarray, intensity: np.ndarray, ia: np.ndarray, ir: np.ndarray,
@@ -293,10 +346,11 @@ def _local_step(axis: np.ndarray, index: np.ndarray) -> np.ndarray:
 
 
 def _best(evaluate, ranges_m: np.ndarray, angles_deg: np.ndarray):
-    """Range and angle of each row's largest intensity."""
-    k = np.argmax(evaluate(ranges_m, angles_deg).intensity, axis=1)
+    """Range, angle and intensity of each row's largest intensity."""
+    values = evaluate(ranges_m, angles_deg).intensity
+    k = np.argmax(values, axis=1)
     rows = np.arange(len(k))
-    return ranges_m[rows, k], angles_deg[rows, k]
+    return ranges_m[rows, k], angles_deg[rows, k], values[rows, k]
 
 
 def _arc_search(evaluate, along, r1, a0, half, bounds):

@@ -320,3 +320,59 @@ def test_merge_equals_the_sequential_rule_on_crowded_peaks(seed):
         got = merge_refined(peaks, r_tol, a_tol)
         np.testing.assert_array_equal(got.range_m, r[kept])
         np.testing.assert_array_equal(got.n_cells, counts)
+
+
+@pytest.mark.parametrize("band_hz, length_s, fs, step_m", [((2000.0, 9000.0), 0.08, 40000.0, 0.2),
+                                                           ((2000.0, 9000.0), 0.02, 40000.0, 0.4),
+                                                           ((1000.0, 20000.0), 0.01, 100000.0, 0.2),
+                                                           ((8000.0, 12000.0), 0.005, 48000.0, 0.4)])
+def test_node_gain_bounds_the_compressed_lfm_between_nodes(band_hz, length_s, fs, step_m):
+    """The matched filter's envelope of the LFM (its autocorrelation, scipy's Hilbert transform, upsampled 16x)
+    at its worst offset from the nodes stands at most ``node_gain`` above the largest of the five nodes about
+    its peak: within 0.2 dB, the flat band's model against the LFM's rippled spectrum (0.1 dB at most here)."""
+    from scipy.signal import hilbert
+
+    from clbeam.imaging.subcell import node_gain
+    from clbeam.model.pulse import Pulse
+
+    replica = Pulse(f0_hz=band_hz[0], f1_hz=band_hz[1], duration_s=length_s).replica(fs)
+    up, n = 16, 8 * replica.size
+    acf = np.roll(np.fft.irfft(np.abs(np.fft.rfft(replica, n)) ** 2, n * up), n * up // 2)
+    env = np.abs(hilbert(acf)) ** 2
+    peak = int(np.argmax(env))
+    node = 2 * step_m / 1500.0 * fs * up                       # one range step in the upsampled samples
+    worst = max(env[peak] / np.max(env[peak + np.round((d + np.arange(-2, 3)) * node).astype(int)])
+                for d in np.linspace(0.0, 0.5, 101))
+    inp = dataclasses.make_dataclass("Inp", ["band_hz", "sound_speed_m_s"])(band_hz, 1500.0)
+    grid = PolarGrid(step_m * np.arange(50), np.array([0.0]))
+    assert 10 * np.log10(worst) <= 10 * np.log10(node_gain(inp, grid)) + 0.2
+
+
+def test_peaks_that_cannot_reach_the_snr_test_are_left_out_without_changing_a_kept_one():
+    """A noise-free ping: every grid maximum above the CF threshold refined and the SNR test's least intensity
+    applied after (the exhaustive rule) keeps the same refined peaks as leaving out, before the searches, those
+    the bounds say cannot reach it; most maxima are left out."""
+    from clbeam.imaging.postprocess import coherence_peaks, hann_smooth
+    from clbeam.imaging.subcell import subcell_peaks
+
+    points = [(70.3, -20.0), (96.1, 15.2), (120.7, 40.4)]
+    ping = point_ping([polar_point(r, a) for r, a in points], record_s=0.3)
+    # the range sidelobes end 15 m from the echoes: beyond them, maxima on the rounding
+    grid = PolarGrid.regular(range_res_m=RANGE_STEP, angle_res_deg=ANGLE_STEP, min_range_m=20.0, max_range_m=200.0,
+                             angles_deg=(-45.0, 60.0))
+    im = Imager(grid, ImagingOptions(interp="lanczos4"))
+    inp = im.beamform_input(ping)
+    sums = im.engine.beamform(inp, grid, interp="lanczos4", outputs=("intensity", "cf"))
+    cf = hann_smooth(sums.cf)
+    cells = coherence_peaks(cf, 0.25)
+    least = float(sums.intensity.max()) * 10 ** (-74 / 10)        # the test's floor 80 dB down, 6 dB above it
+    common = dict(cf_smooth=cf, intensity=sums.intensity, threshold=0.25)
+    every = subcell_peaks(im.engine, inp, grid, cells, interp_mode("lanczos4"), **common)
+    every = every.take(np.flatnonzero(every.intensity >= least))
+    early = subcell_peaks(im.engine, inp, grid, cells, interp_mode("lanczos4"), least_intensity=least, **common)
+    early = early.take(np.flatnonzero(early.intensity >= least))
+    searched = refine_peaks(im.engine, inp, grid, cells, interp_mode("lanczos4"), least_intensity=least, **common)
+    assert len(early.range_m) >= len(points) and len(cells) > 2 * len(searched.range_m)
+    np.testing.assert_array_equal(np.sort(early.range_m), np.sort(every.range_m))
+    np.testing.assert_array_equal(np.sort(early.angle_deg), np.sort(every.angle_deg))
+    np.testing.assert_array_equal(np.sort(early.intensity), np.sort(every.intensity))
