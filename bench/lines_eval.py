@@ -18,11 +18,15 @@ burial errors over them, against the standard errors their lines report.
 (:mod:`clbeam.sim.families`: the survey drawn from SEED, with and without its
 pipelines; SEED also seeds the noise).  ``--family tuning:N`` adds the first N
 tuning draws of both, ``--family validation`` every validation draw (32
-surveys with pipelines, 8 clutter-only): the figures are reported per split,
+surveys with pipelines, 8 clutter-only), ``--family validation:N`` the first N
+of those with pipelines and every fourth clutter-only one up to N: the figures are reported per split,
 tuning (every built-in scene, on which the detector was developed, and the
 family's tuning seeds) apart from validation (nothing was ever chosen on it).
 
     python bench/lines_eval.py --work DIR --scenes "" --family validation
+
+``--model discrete`` renders the family draws under the discrete-scatterer physics
+(:mod:`clbeam.sim.discrete`; the same surveys, their files and stores tagged ``-discrete``).
 """
 
 from __future__ import annotations
@@ -51,15 +55,16 @@ FAMILY_PINGS = 40
 ON_LINE_TARGET, POSITION_TARGET_M, BURIAL_TARGET_M, NADIR_LIMIT_DEG = 0.9, 0.5, 0.5, 60.0
 
 
-def load_spec(spec: str):
-    """The scene of a spec (``NAME``, ``NAME:SEED``, ``family:SEED``, ``clutter-family:SEED``) and its noise seed."""
+def load_spec(spec: str, model: str = "specular"):
+    """The scene of a spec (``NAME``, ``NAME:SEED``, ``family:SEED``, ``clutter-family:SEED``) and its noise seed;
+    ``model``: the physics of the family draws (a built-in scene keeps its own)."""
     from clbeam.sim.families import clutter_scene
     from clbeam.sim.families import survey_scene as family_scene
 
     name, _, seed = spec.partition(":")
     if name in ("family", "clutter-family"):
         draw = int(seed)
-        return (family_scene if name == "family" else clutter_scene)(draw, pings=FAMILY_PINGS), draw
+        return (family_scene if name == "family" else clutter_scene)(draw, pings=FAMILY_PINGS, model=model), draw
     return load_scene(name), int(seed or 0)
 
 
@@ -73,14 +78,19 @@ def split_of(spec: str) -> str:
 
 def family_specs(choice: str) -> list:
     """The specs of ``--family``: ``tuning:N`` (the first N tuning draws, with and without pipelines, a clutter
-    survey for every fourth) or ``validation`` (every validation draw)."""
+    survey for every fourth), ``validation`` (every validation draw) or ``validation:N`` (the first N with
+    pipelines, and a clutter-only one for every fourth)."""
     from clbeam.sim.families import CLUTTER_VALIDATION_SEEDS, VALIDATION_SEEDS
 
     if choice == "validation":
         return [f"family:{s}" for s in VALIDATION_SEEDS] + [f"clutter-family:{s}" for s in CLUTTER_VALIDATION_SEEDS]
     kind, _, n = choice.partition(":")
-    if kind != "tuning" or not n.isdigit():
-        raise SystemExit(f"lines_eval: --family is tuning:N or validation, got {choice!r}")
+    if kind not in ("tuning", "validation") or not n.isdigit():
+        raise SystemExit(f"lines_eval: --family is tuning:N, validation or validation:N, got {choice!r}")
+    if kind == "validation":
+        n_clutter = -(-int(n) // 4)
+        return ([f"family:{s}" for s in VALIDATION_SEEDS[:int(n)]]
+                + [f"clutter-family:{s}" for s in CLUTTER_VALIDATION_SEEDS[:n_clutter]])
     return [f"family:{s}" for s in range(int(n))] + [f"clutter-family:{s}" for s in range(0, int(n), 4)]
 
 
@@ -115,13 +125,16 @@ def split_summary(split: str, scored: list, clutter_km: float, clutter_false: in
     return out
 
 
-def survey_scene(spec: str, work: Path, lines: LineOptions):
-    """Simulate (once) and survey one scene (``NAME`` or ``NAME:SEED``); its products."""
+def survey_scene(spec: str, work: Path, lines: LineOptions, model: str = "specular"):
+    """Simulate (once) and survey one scene (``NAME`` or ``NAME:SEED``; a family draw under the physics
+    ``model``); its products."""
     name, _, seed = spec.partition(":")
     tag = f"{name}_s{seed}" if seed else name
+    if model != "specular" and name in ("family", "clutter-family"):
+        tag += f"-{model}"
     nc = work / f"{tag}.nc"
     if not nc.exists():
-        scene, noise_seed = load_spec(spec)
+        scene, noise_seed = load_spec(spec, model)
         write_ping_file(simulate(scene, seed=noise_seed), nc)
     scan = scan_inputs([nc])
     if not scan.files:
@@ -233,6 +246,8 @@ def main(argv=None) -> None:
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--family", action="append", default=[], metavar="tuning:N|validation",
                     help="add survey-family draws (repeatable)")
+    ap.add_argument("--model", default="specular", choices=("specular", "discrete"),
+                    help="the physics the family draws are rendered under")
     args = ap.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
     header = ["| scene | pipeline | detectable pings | on its line | fragments | position RMS (m) | burial error (m) "
@@ -245,7 +260,7 @@ def main(argv=None) -> None:
     for spec in specs:
         t0 = time.perf_counter()
         split = split_of(spec)
-        res, nc, out, opts = survey_scene(spec, args.work, LineOptions())
+        res, nc, out, opts = survey_scene(spec, args.work, LineOptions(), args.model)
         scored = score_survey(res.products, [nc])
         for r in scored[0] if scored is not None else ():
             r["scene"] = spec

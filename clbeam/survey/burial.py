@@ -151,6 +151,35 @@ def offplane_deepening_m(range_m, angle_rad, beam_width_rad: float, band_hz=None
     return np.asarray(range_m, dtype=np.float64) * mean_square / (2.0 * cos_t)
 
 
+#: mean square of ``v = L phi / lambda`` over the half of a uniform aperture's one-way main lobe nearest its axis,
+#: ``|v| <= 1/2`` (to about its -4 dB point), weighted by ``sinc^2``: ``integral of v^2 sinc^2 v / integral of
+#: sinc^2 v`` there (the mean square angle in ``(lambda/L)^2`` of the stretch a line's echoes come from)
+SMEAR_MEAN_SQUARE = 0.065479
+
+
+def smear_deepening_m(range_m, angle_rad, beam_width_rad: float) -> np.ndarray:
+    """How much deeper than a line's crossing its echoes from its stretch inside the transmit beam lie on
+    average (m): ``R E[phi^2] / (2 cos theta)``, the seabed's off-plane depth
+    (:func:`offplane_deepening_m`) over the stretch a line's smear holds.
+
+    A pipe at a heading ``a`` to the track whose echo comes from its whole stretch inside the transmit beam
+    (rough, or of discrete scatterers) images a scatterer ``x = R phi`` off the ping's plane ``x tan a``
+    across and ``sqrt(z^2 + x^2) - z`` deeper.  A line's gates take its echoes from half the beam's width
+    either side of the plane (:func:`clbeam.survey.lines.smear_half_width`), its energy weighted by the
+    pattern ``sinc^2(L phi / lambda)`` at the band's centre: ``E[phi^2] = SMEAR_MEAN_SQUARE (lambda / L)^2``,
+    0.24 times the seabed's band average over the whole main lobe at 2-9 kHz.
+
+    Parameters
+    ----------
+    range_m, angle_rad : array_like
+        The echoes' slant ranges (m) and angles from nadir (rad).
+    beam_width_rad : float
+        The transmit beam's width along the track at the band's centre, ``lambda_c / L`` (rad).
+    """
+    cos_t = np.maximum(np.abs(np.cos(np.asarray(angle_rad, dtype=np.float64))), 0.05)
+    return np.asarray(range_m, dtype=np.float64) * SMEAR_MEAN_SQUARE * beam_width_rad ** 2 / (2.0 * cos_t)
+
+
 def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, n_trials: int = 200,
                 seed: int = 0) -> tuple[float, float] | None:
     """The seabed of one ping from its peaks: ``(z0, slope)`` of ``z = z0 + slope y`` (m, 1), or ``None``.

@@ -21,7 +21,7 @@ from clbeam.survey.burial import ARC_SIGMA_RAD, SEABED_SE_M, SPECULAR_K_SIGMA, a
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
-from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, line_path
+from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, line_path, smear_half_width
 from clbeam.survey.specular import fading_fit, fading_floor_db, specular_crossing
 
 log = logging.getLogger(__name__)
@@ -45,6 +45,12 @@ class LineDetections:
         ``(n,)`` each peak's slide along its arc: the standard deviation of
         its angle at broadside (rad, :func:`clbeam.survey.burial.peak_slide_rad`);
         ``None``: :data:`clbeam.survey.burial.ARC_SIGMA_RAD` for all.
+    smear_m : numpy.ndarray or None
+        ``(n,)`` how much deeper each peak would lie than a line's crossing
+        were it an echo of the line's stretch inside the transmit beam (m,
+        :func:`clbeam.survey.burial.smear_deepening_m`): a diffuse line at a
+        heading is raised by its mean (:func:`diffuse_shift`); ``None``: no
+        such correction.
     """
 
     ping: np.ndarray
@@ -53,6 +59,7 @@ class LineDetections:
     cf: np.ndarray
     intensity_db: np.ndarray | None = None
     slide_rad: np.ndarray | None = None
+    smear_m: np.ndarray | None = None
 
 
 @dataclass
@@ -187,36 +194,69 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths)
 
 
+#: a weaker line alongside a better one within the reach of the better one's transmit smear out to this many
+#: beam widths (``lambda / L``) off the ping's plane (the pattern's second null) is its shadow: a stretch of the
+#: same pipe seen through the transmit pattern's first sidelobe, imaged beside it and deeper
+SHADOW_BEAMS = 2.0
+#: and it is that shadow only when its echoes are at least this much weaker (dB; the first sidelobe of a uniform
+#: column lies 13.3 dB down)
+SHADOW_DB = 10.0
+
+
 def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions, level: np.ndarray | None = None
                         ) -> list:
-    """The lines less those that shadow a better one: over at least half their pings within two gates of it
-    across the track (the wider line's, as narrowed for the score, :func:`effective_gates`: a crossing line's
-    smear holds more than one track, while tight lines side by side at a heading are two) and within 3 m in
-    burial (a pulse's tail or a sidelobe of the same pipe), in line order.  Better: the higher score, and of
-    equal scores (long lines with a detection in every ping reach the same) the higher mean level (``level``,
-    the detections' intensities in dB): the echo, not its range sidelobes (the seabed's nadir echo has
-    peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near 1)."""
-    def better(i):
-        members = described[i][0].members
-        loud = level[members][np.isfinite(level[members])] if level is not None else np.zeros(0)
-        return -described[i][1]["score"], -(float(np.mean(loud)) if loud.size else -np.inf)
-    order = sorted(range(len(described)), key=better)
+    """The lines less those that shadow a better one, in line order (:func:`_shadows`).  Better: the higher
+    score, and of equal scores (long lines with a detection in every ping reach the same) the higher mean level
+    (``level``, the detections' intensities in dB): the echo, not its range sidelobes (the seabed's nadir echo
+    has peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near 1)."""
+    loud = [_mean_level(level, d[0].members) for d in described]
+    order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
     gates = [effective_gates(frame, d[0], d[2][1], options)[0] for d in described]
+    reach = [_smear_reach(frame, d[0], d[2][1], options) for d in described]
     kept = []
     for i in order:
-        _, row, (pings, y), *_ = described[i]
-        dup = False
-        for j in kept:
-            _, other, (p2, y2), *_ = described[j]
-            common, a, b = np.intersect1d(pings, p2, return_indices=True)
-            near = np.abs(y[a] - y2[b]) <= 2 * max(gates[i], gates[j])
-            same_depth = not (abs(row["burial_m"] - other["burial_m"]) > 3.0)
-            if near.sum() >= 0.5 * pings.size and same_depth:
-                dup = True
-                break
-        if not dup:
+        if not any(_shadows(described[i], described[j], 2 * max(gates[i], gates[j]), reach[j], loud[j] - loud[i])
+                   for j in kept):
             kept.append(i)
     return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
+
+
+def _shadows(line: tuple, better: tuple, two_gates: float, reach_m: float, weaker_db: float) -> bool:
+    """Whether ``line`` shadows ``better`` (both :func:`survey_lines`' described tuples): over at least half
+    its pings within ``two_gates`` of it across the track (the wider line's gate, as narrowed for the score,
+    :func:`effective_gates`: a crossing line's smear holds more than one track, while tight lines side by side
+    at a heading are two) and within 3 m in burial (a pulse's tail or a sidelobe of the same pipe); or within
+    ``two_gates`` plus ``reach_m`` (the better line's smear out to :data:`SHADOW_BEAMS`, :func:`_smear_reach`),
+    deeper than it and at least :data:`SHADOW_DB` weaker (``weaker_db``: the better one's mean level less its,
+    dB): the same pipe's stretch seen through a transmit sidelobe, off the plane, so further along its range."""
+    _, row, (pings, y), *_ = line
+    _, other, (p2, y2), *_ = better
+    _, a, b = np.intersect1d(pings, p2, return_indices=True)
+    dist = np.abs(y[a] - y2[b])
+    same_depth = not (abs(row["burial_m"] - other["burial_m"]) > 3.0)
+    if np.count_nonzero(dist <= two_gates) >= 0.5 * pings.size and same_depth:
+        return True
+    deeper = row["burial_m"] >= other["burial_m"]
+    return bool(deeper and weaker_db >= SHADOW_DB and np.count_nonzero(dist <= two_gates + reach_m) >= 0.5 * pings.size)
+
+
+def _mean_level(level: np.ndarray | None, members: np.ndarray) -> float:
+    """Mean intensity of a line's detections (dB; -inf without levels)."""
+    loud = level[members][np.isfinite(level[members])] if level is not None else np.zeros(0)
+    return float(np.mean(loud)) if loud.size else -math.inf
+
+
+def _smear_reach(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> float:
+    """How far across (m) a line's transmit smear reaches out to :data:`SHADOW_BEAMS` beam widths off the
+    ping's plane: ``SHADOW_BEAMS r beam |tan a|``, the median over its detections (slant range ``r``, the path's
+    slope ``tan a``)."""
+    m = tr.members
+    s_ext = frame.ping_s[tr.first:tr.last + 1]
+    if path_y.size < 2 or np.ptp(s_ext) <= 0:
+        return 0.0
+    k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
+    slope = np.gradient(path_y, s_ext)[k]
+    return float(np.median(2 * SHADOW_BEAMS * smear_half_width(frame, m, slope, options)))
 
 
 def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray, pings: np.ndarray,
@@ -234,8 +274,9 @@ def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np
     sy[~known] = 0.0
     r = np.hypot(y - centre_yz[p, 0], z - centre_yz[p, 1])
     s = s_ping[np.searchsorted(pings, p)]
+    smear = None if det.smear_m is None else np.asarray(det.smear_m, dtype=np.float64)[order]
     return TrackFrame(ping=p, s=s, y=ya, b=b, cf=det.cf[order], b_sigma=sd, b_post=bpost,
-                      pings=pings, ping_s=s_ping, y_sigma=sy, r=r)
+                      pings=pings, ping_s=s_ping, y_sigma=sy, r=r, smear=smear)
 
 
 def _search_size(frame: TrackFrame) -> SearchSize:
@@ -264,10 +305,12 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     spec = _specular(frame, tr, path_y, sb, centre_yz, level, options)
     measured = (burial, burial_se)  # what the kind is judged by unless the line is specular
     if spec is not None and spec["path_y"] is None:
-        # smooth or rough, undecided: a buried line's burial halfway (a smooth pipe's echo never lies above the
-        # seabed: a line at or above it is left as it is)
-        if options.min_burial_m <= burial <= options.max_burial_m:
+        # diffuse_shift: undecided, a buried line's burial halfway (a smooth pipe's echo never lies above the
+        # seabed: a line at or above it is left as it is); a diffuse line at a heading raised by its smear
+        if spec["always"] or options.min_burial_m <= burial <= options.max_burial_m:
             burial, burial_se = burial + spec["burial_shift_m"], math.hypot(burial_se, spec["burial_extra_error_m"])
+        if spec["always"]:
+            measured = (burial, burial_se)
         spec = None
     if spec is not None:  # a smooth pipe's migrated echo: back to where the pipe crosses each ping's plane
         path_y = spec["path_y"]
@@ -359,7 +402,7 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     moved = np.isfinite(frame.b[m])
     fades = _fades(frame, m[moved], slope[k[moved]], centre_yz[g[moved], 0], level, options)
     if moved.sum() < 3 or not (by_burial or (fades and not not_specular)):
-        return None if not_specular else _undecided(fit, options)
+        return diffuse_shift(fit, frame.smear[m], not_specular, options)
     y_c = specular_crossing(frame.y[m][moved], frame.s[m][moved], centre_yz[g[moved], 0], s_ext, options.fit_length_m)
     # specular, whatever the free fit's k: the burial with k drawn towards the geometry's 1, from the echoes
     # whose nearest point lies inside the transmit beam (half its width: as _undecided's gate)
@@ -368,19 +411,36 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
 
 
-def _undecided(fit: dict, options: LineOptions) -> dict | None:
-    """A line neither test calls specular nor diffuse (a steady heading: no spread of the extra depth, no
-    fading), whose nearest point, were it smooth, would lie inside the transmit beam (within half of
-    ``beam_width_deg``, ``lambda / L`` at the band's centre: about the main lobe's -4 dB point) and so be seen
-    as well as a rough pipe's crossing: a smooth pipe's echo would lie ``dz`` deeper than the pipe, a rough
-    one's at it.  Its burial is taken halfway, ``dz / 2`` shallower than measured, with ``dz / sqrt(12)`` (a
-    uniform spread over the two) added to its standard error (``burial_shift_m``, ``burial_extra_error_m``);
-    ``None`` where a smooth pipe's nearest point would lie further off the plane (its echo weaker than a rough
-    pipe's: taken as rough) or there is no extra depth."""
+def diffuse_shift(fit: dict, smear_m: np.ndarray, not_specular: bool, options: LineOptions) -> dict | None:
+    """How a line that is not taken as a smooth pipe's specular echo has its burial read: a dict with
+    ``path_y`` None, ``burial_shift_m`` (added to its measured burial, m), ``burial_extra_error_m`` (added to its
+    standard error in quadrature, m) and ``always`` (the shift holds at any burial and for the kind), or
+    ``None``: as measured.
+
+    * **Nearest point inside the beam, undecided** (``not_specular`` false: a steady heading shows no spread
+      of the extra depth and no fading), were it smooth (within half of ``beam_width_deg``, ``lambda / L``
+      at the band's centre: about the main lobe's -4 dB point): a smooth pipe's echo would lie ``dz`` deeper
+      than the pipe, a rough one's at it.  Halfway, ``dz / 2`` shallower than measured, with ``dz /
+      sqrt(12)`` (a uniform spread over the two) in its error; for buried lines only.
+    * **Nearest point outside the beam**: the echo comes from the whole stretch of the pipe inside the
+      transmit beam (a rough or discrete-scatterer pipe at a heading; a smooth one's would be weaker).  Its
+      range has no stationary point there, so the echo's energy spreads along the stretch, and a scatterer
+      ``x`` off the ping's plane images ``sqrt(z^2 + x^2) - z`` deeper (as the seabed's peaks do, raised by
+      :func:`clbeam.survey.burial.offplane_deepening_m`): the line is raised by the mean of its detections'
+      ``smear_m`` (m, :func:`clbeam.survey.burial.smear_deepening_m`, over the stretch its gates hold).
+
+    ``fit``: :func:`clbeam.survey.burial.specular_fit`'s (``extra_depth_m``, ``offplane_rad``).
+    """
     dz, off = fit.get("extra_depth_m", math.nan), fit.get("offplane_rad", math.nan)
-    if not (dz > 0 and off < 0.5 * math.radians(options.beam_width_deg)):
-        return None
-    return {"path_y": None, "burial_shift_m": -0.5 * dz, "burial_extra_error_m": dz / math.sqrt(12.0)}
+    half = 0.5 * math.radians(options.beam_width_deg)
+    if not not_specular and dz > 0 and off < half:
+        return {"path_y": None, "burial_shift_m": -0.5 * dz, "burial_extra_error_m": dz / math.sqrt(12.0),
+                "always": False}
+    smear = np.asarray(smear_m, dtype=np.float64)
+    smear = smear[np.isfinite(smear)]
+    if off >= half and smear.size and float(smear.mean()) > 0:
+        return {"path_y": None, "burial_shift_m": -float(smear.mean()), "burial_extra_error_m": 0.0, "always": True}
+    return None
 
 
 def _fades(frame: TrackFrame, members: np.ndarray, sin_a: np.ndarray, centre_y: np.ndarray,

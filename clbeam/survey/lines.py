@@ -86,6 +86,10 @@ class TrackFrame:
         ``(n,)`` slant range of each detection from its grid centre (m): a
         line crossing the track at a heading ``a`` smears over
         ``r beam tan(a)`` across in each ping (:func:`across_gate`).
+    smear : numpy.ndarray or None
+        ``(n,)`` how much deeper each detection would lie than a line's crossing
+        were it an echo of the line's stretch inside the transmit beam (m,
+        :func:`clbeam.survey.burial.smear_deepening_m`; zeros: none).
     pings : numpy.ndarray
         ``(k,)`` every imaged survey ping, sorted (those without detections too).
     ping_s : numpy.ndarray
@@ -103,13 +107,13 @@ class TrackFrame:
     ping_s: np.ndarray
     y_sigma: np.ndarray | None = None
     r: np.ndarray | None = None
+    smear: np.ndarray | None = None
     starts: np.ndarray = field(init=False)
 
     def __post_init__(self):
-        if self.y_sigma is None:
-            self.y_sigma = np.zeros(self.y.size)
-        if self.r is None:
-            self.r = np.zeros(self.y.size)
+        for name in ("y_sigma", "r", "smear"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.zeros(self.y.size))
         pos = np.searchsorted(self.ping, self.pings)
         self.starts = np.r_[pos, self.ping.size]
 

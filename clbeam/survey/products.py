@@ -44,7 +44,7 @@ from clbeam.io.survey_store import (
     update_store,
 )
 from clbeam.survey.association import associate, describe_objects
-from clbeam.survey.burial import offplane_deepening_m, peak_slide_rad, receive_beam_width_rad, seabed_line
+from clbeam.survey.burial import offplane_deepening_m, peak_slide_rad, receive_beam_width_rad, seabed_line, smear_deepening_m
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.inputs import one_line
 from clbeam.survey.line_products import LineDetections, SurveyLines, line_rows, survey_lines, track_distance_m
@@ -172,9 +172,10 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     nav.finish(first.per_ping["imaged"])
     _associate(det, nav, assoc)
     slide = peak_slide_rad(det.snr_db, _receive_beam_rad(first), _angle_step_rad(options.grid))
-    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db, slide), first.seabed,
-                         np.stack([first.per_ping["centre_y"], first.per_ping["centre_z"]], axis=1),
-                         first.per_ping["imaged"], nav, options.lines)
+    centre = np.stack([first.per_ping["centre_y"], first.per_ping["centre_z"]], axis=1)
+    smear = _smear_depth(det, centre, math.radians(options.lines.beam_width_deg))
+    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db, slide, smear), first.seabed,
+                         centre, first.per_ping["imaged"], nav, options.lines)
     row_labels = {c: np.full(first.n_rows, -1, dtype=np.int64) for c in ("object", "line")}
     row_labels["object"][det.row] = det.labels
     row_labels["line"][det.row] = lines.labels
@@ -225,6 +226,14 @@ def _seabed(rec: dict, beam_width_rad: float) -> tuple | None:
     y, z, r, a = (np.array([_nan(pk.get(k)) for pk in peaks]) for k in ("y_m", "z_m", "range_m", "angle_deg"))
     deeper = offplane_deepening_m(r, np.radians(a), beam_width_rad, rec.get("band_hz"))
     return seabed_line(y, z - np.nan_to_num(deeper, nan=0.0))
+
+
+def _smear_depth(det: _Detections, centre_yz: np.ndarray, beam_width_rad: float) -> np.ndarray:
+    """Each detection's depth below a line's crossing were it an echo of the line's stretch inside the transmit
+    beam (m, :func:`clbeam.survey.burial.smear_deepening_m` at its range and angle from its grid centre
+    ``centre_yz``, ``(n_pings, 2)`` m)."""
+    dy, dz = det.y - centre_yz[det.ping, 0], det.z - centre_yz[det.ping, 1]
+    return smear_deepening_m(np.hypot(dy, dz), np.arctan2(dy, dz), beam_width_rad)
 
 
 def _receive_beam_rad(first: _FirstPass) -> float:

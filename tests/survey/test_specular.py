@@ -276,17 +276,19 @@ def test_the_halfway_burial_needs_a_smooth_pipes_nearest_point_inside_the_beam()
     """The gate on the angle off the plane at which a smooth pipe's nearest point would lie: inside half the
     beam width (4.5 degrees: 0.039 rad) the burial moves by dz / 2 with dz / sqrt(12) more error, beyond it
     and without extra depth it does not."""
-    from clbeam.survey.line_products import _undecided
+    from clbeam.survey.line_products import diffuse_shift
 
+    def undecided(fit, options):
+        return diffuse_shift(fit, np.zeros(0), False, options)
     half = 0.5 * np.radians(LineOptions().beam_width_deg)
-    inside = _undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, LineOptions())
+    inside = undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, LineOptions())
     assert inside["burial_shift_m"] == pytest.approx(-0.4) and inside["burial_extra_error_m"] == pytest.approx(
         0.8 / np.sqrt(12))
-    assert _undecided({"extra_depth_m": 0.8, "offplane_rad": 1.05 * half}, LineOptions()) is None
-    assert _undecided({"extra_depth_m": 0.0, "offplane_rad": 0.0}, LineOptions()) is None
-    assert _undecided({"extra_depth_m": np.nan, "offplane_rad": np.nan}, LineOptions()) is None
+    assert undecided({"extra_depth_m": 0.8, "offplane_rad": 1.05 * half}, LineOptions()) is None
+    assert undecided({"extra_depth_m": 0.0, "offplane_rad": 0.0}, LineOptions()) is None
+    assert undecided({"extra_depth_m": np.nan, "offplane_rad": np.nan}, LineOptions()) is None
     narrow = LineOptions(beam_width_deg=2.0)
-    assert _undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, narrow) is None
+    assert undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, narrow) is None
 
 
 @pytest.mark.parametrize("louder_deeper", [False, True])

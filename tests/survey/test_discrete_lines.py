@@ -1,0 +1,151 @@
+"""Lines of pipes whose echo comes from their whole stretch inside the transmit beam (discrete scatterers): the
+smear's deepening taken off their burial, and the shadow a transmit sidelobe casts beside them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from clbeam.survey.burial import smear_deepening_m
+from clbeam.survey.georef import SurveyNavigation
+from clbeam.survey.line_options import LineOptions
+from clbeam.survey.line_products import SHADOW_BEAMS, LineDetections, diffuse_shift, survey_lines
+
+C, LENGTH, F_C = 1500.0, 3.5, 5500.0
+BEAM = C / F_C / LENGTH  # lambda / L at the band's centre (rad)
+
+
+def _lines(det: LineDetections, depth: float, n: int):
+    """:func:`survey_lines` without navigation, the grid centres at the surface, a flat seabed ``depth`` deep."""
+    nav = SurveyNavigation(n, None)
+    imaged = np.ones(n, dtype=bool)
+    nav.finish(imaged)
+    return survey_lines(det, np.tile([depth, 0.0], (n, 1)), np.zeros((n, 2)), imaged, nav, LineOptions())
+
+
+def _main_lobe_offsets(rng, r: float, size: int) -> np.ndarray:
+    """Distances off the ping's plane (m) at range ``r`` of echoes drawn from the energy of a column's one-way
+    main lobe at the band's centre, ``sinc^2(L sin(phi) / lambda)``, over half its width either side of the
+    plane (the stretch a line's gates hold; inverse CDF on a fine grid)."""
+    phi = np.linspace(-0.5 * BEAM, 0.5 * BEAM, 4001)
+    cdf = np.cumsum(np.sinc(LENGTH * np.sin(phi) / (C / F_C)) ** 2)
+    return r * np.sin(np.interp(rng.random(size), cdf / cdf[-1], phi))
+
+
+def _discrete_pipe(rng, heading_deg: float, n: int = 60, y0: float = 340.0, depth: float = 200.0,
+                   burial: float = 1.0, smear: bool = True) -> LineDetections:
+    """A pipe of scatterers at ``heading_deg`` to the track, ``burial`` below a flat seabed ``depth`` deep: in
+    each ping one echo from the stretch inside the beam, each ``x`` off the plane imaged at ``y_c + x tan
+    a`` across and ``sqrt(z^2 + x^2)`` deep (its exact image; the peak a ping keeps, its echo anywhere in the
+    beam), with seabed clutter; ``smear``: with each
+    detection's :func:`offplane_deepening_m` (the band's centre only)."""
+    a = math.radians(heading_deg)
+    ping, y, z, cf = [], [], [], []
+    for k in range(n):
+        y_c, z_p = y0 + 8.2 * k * math.tan(a), depth + burial
+        x = _main_lobe_offsets(rng, math.hypot(y_c, z_p), 1)
+        n_c = rng.poisson(0.01 * 800)
+        ping += [k] * (1 + n_c)
+        y += list(y_c + x * math.tan(a)) + list(rng.uniform(-800, 800, n_c))
+        z += list(np.hypot(z_p, x)) + list(depth + rng.uniform(-2, 25, n_c))
+        cf += list(rng.uniform(0.6, 0.8, 1)) + list(rng.uniform(0.4, 0.6, n_c))
+    ping, y, z, cf = (np.asarray(v) for v in (ping, y, z, cf))
+    deeper = smear_deepening_m(np.hypot(y, z), np.arctan2(y, z), BEAM) if smear else None
+    return LineDetections(ping=ping, y=y, z=z, cf=cf, smear_m=deeper)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_discrete_pipe_at_a_heading_is_raised_by_its_smears_mean_deepening(seed):
+    """A pipe of scatterers at 5 degrees, 340 m across in 200 m of water, 1 m deep: its echoes image
+    ``sqrt(z^2 + x^2) - z`` deeper, on average ``R E[phi^2] / (2 cos theta)`` over the main lobe's energy
+    within half the beam either side of the plane (here by numerical integration, ``quad``).  Read as
+    measured its burial is that much too deep; raised by its detections' smear it lies within three standard
+    errors of the smear's sample mean (the detections' own spread over the square root of their number) of
+    the truth."""
+    rng = np.random.default_rng(seed)
+    n = 60
+    y_c = 340.0 + 8.2 * np.arange(n) * math.tan(math.radians(5.0))
+    weight = lambda p: np.sinc(LENGTH * math.sin(p) * F_C / C) ** 2  # noqa: E731
+    half = 0.5 * BEAM
+    mean_square = quad(lambda p: p * p * weight(p), -half, half)[0] / quad(weight, -half, half)[0]
+    # R / (2 cos theta) = R^2 / (2 z) at each ping's crossing, averaged over the pings
+    expected = float(np.mean((y_c ** 2 + 201.0 ** 2) * mean_square / (2 * 201.0)))
+    assert 0.15 < expected < 0.3
+    plain = _lines(_discrete_pipe(np.random.default_rng(seed), 5.0, n, smear=False), 200.0, n)
+    fixed = _lines(_discrete_pipe(rng, 5.0, n), 200.0, n)
+    # the longest pipeline line (one echo a ping anywhere in the smear, 2.6 m across: a line may break once)
+    p, f = (max((row for row in lines.rows if row["kind"] == "pipeline"), key=lambda row: row["n_pings"])
+            for lines in (plain, fixed))
+    tolerance = 3 * max(f["burial_std_m"], 0.3) / math.sqrt(f["n_pings"])
+    assert f["burial_m"] == pytest.approx(1.0, abs=tolerance)
+    assert p["burial_m"] - f["burial_m"] == pytest.approx(expected, rel=0.05)
+
+
+def test_a_pipe_along_the_track_is_not_raised():
+    """Nearest point in the beam (a pipe at 0.5 degrees, its nearest point 3 m off the plane at 400 m): the echo
+    concentrates where its range is stationary and the smear's correction does not apply; undecided, it takes
+    the halfway shift of a smooth pipe's extra depth, ``dz / 2`` (closed form ``sqrt(z^2 + x^2) - z``)."""
+    half = 0.5 * math.radians(LineOptions().beam_width_deg)
+    x = 350.0 * math.sin(math.radians(0.5)) * math.cos(math.radians(0.5))
+    dz = math.hypot(201.0, x) - 201.0
+    fit = {"extra_depth_m": dz, "offplane_rad": x / math.hypot(350.0, 201.0)}
+    assert fit["offplane_rad"] < half
+    shift = diffuse_shift(fit, np.full(10, 0.3), False, LineOptions())
+    assert shift["burial_shift_m"] == pytest.approx(-0.5 * dz) and not shift["always"]
+    outside = diffuse_shift({"extra_depth_m": dz, "offplane_rad": 1.1 * half}, np.array([0.2, 0.4, np.nan]), True,
+                            LineOptions())
+    assert outside["burial_shift_m"] == pytest.approx(-0.3) and outside["always"]
+    assert diffuse_shift({"extra_depth_m": dz, "offplane_rad": 1.1 * half}, np.zeros(0), True, LineOptions()) is None
+
+
+def _side_by_side(rng, offset_m: float, extra_burial_m: float, weaker_db: float, n: int = 24):
+    """A rough pipe at 5 degrees 340 m across (200 m of water, 1 m deep) and a second line ``offset_m`` further
+    out, ``extra_burial_m`` deeper and ``weaker_db`` weaker, in 20 of the pings; seabed clutter."""
+    a, depth = math.tan(math.radians(5.0)), 200.0
+    ping, y, z, cf, level = [], [], [], [], []
+    for k in range(n):
+        y_c = 340.0 + 8.2 * k * a
+        second = 2 <= k < 22
+        n_c = rng.poisson(0.01 * 800)
+        ping += [k] * (1 + second + n_c)
+        y += [y_c + rng.normal(0, 0.3)] + [y_c + offset_m + rng.normal(0, 0.3)] * second
+        y += list(rng.uniform(-800, 800, n_c))
+        z += [depth + 1.0 + rng.normal(0, 0.1)] + [depth + 1.0 + extra_burial_m + rng.normal(0, 0.1)] * second
+        z += list(depth + rng.uniform(-2, 25, n_c))
+        cf += list(rng.uniform(0.6, 0.8, 1 + second)) + list(rng.uniform(0.4, 0.6, n_c))
+        level += [-70.0] + [-70.0 - weaker_db] * second + list(rng.uniform(-95, -85, n_c))
+    ping, y, z, cf, level = (np.asarray(v) for v in (ping, y, z, cf, level))
+    return _lines(LineDetections(ping=ping, y=y, z=z, cf=cf, intensity_db=level), depth, n)
+
+
+def test_a_transmit_sidelobes_shadow_beside_a_pipe_is_no_second_line():
+    """The stretch of a pipe at 5 degrees seen through the first transmit sidelobe (44 m off the plane at
+    394 m): 15 dB weaker, 7 m further out and 2 m deeper, within two gates plus the smear's reach out to
+    :data:`SHADOW_BEAMS` beam widths (``2 SHADOW_BEAMS (0.5 beam r tan a)``, 5.4 m here): one pipeline line,
+    on the pipe."""
+    reach = SHADOW_BEAMS * math.radians(4.5) * math.hypot(345.0, 201.0) * math.tan(math.radians(5.0))
+    assert 5.0 < reach < 7.0 < reach + 2 * LineOptions().across_gate_m
+    lines = _side_by_side(np.random.default_rng(1), 7.0, 2.0, 15.0)
+    pipes = [r for r in lines.rows if r["kind"] == "pipeline"]
+    assert len(pipes) == 1
+    assert pipes[0]["burial_m"] == pytest.approx(1.0, abs=0.2)
+
+
+@pytest.mark.parametrize("offset_m, extra_burial_m, weaker_db", [(7.0, 0.0, 3.0), (7.0, 2.0, 3.0), (7.0, -0.5, 15.0),
+                                                                 (12.0, 2.0, 15.0)])
+def test_two_real_pipes_side_by_side_stay_two_lines(offset_m, extra_burial_m, weaker_db):
+    """Two pipes 7 m apart: as loud or 3 dB apart (a shadow is 10 dB and more down), or a fainter one
+    shallower (a shadow lies deeper), or one beyond the smear's reach (12 m): two pipeline lines, each at its
+    own burial and within a gate of its own offset (the deeper one's path, moved along its arcs towards the
+    prior's burial, lies up to a metre further out)."""
+    lines = _side_by_side(np.random.default_rng(2), offset_m, extra_burial_m, weaker_db)
+    pipes = sorted((r for r in lines.rows if r["kind"] == "pipeline"), key=lambda r: r["mean_y_m"])
+    assert len(pipes) == 2
+    mean_y = 340.0 + np.mean(8.2 * np.arange(24)) * math.tan(math.radians(5.0))
+    assert pipes[0]["burial_m"] == pytest.approx(1.0, abs=0.2)
+    assert pipes[1]["burial_m"] == pytest.approx(1.0 + extra_burial_m, abs=0.2)
+    assert pipes[1]["mean_y_m"] - pipes[0]["mean_y_m"] == pytest.approx(offset_m, abs=LineOptions().across_gate_m)
+    assert pipes[0]["mean_y_m"] == pytest.approx(mean_y, abs=0.5)
