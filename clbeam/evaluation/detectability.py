@@ -31,6 +31,7 @@ import numpy as np
 from clbeam.errors import OptionError, require
 from clbeam.evaluation.detectability_stats import (
     DEFAULT_DRAWS,
+    GRID_OFFSETS,
     ChannelModel,
     Tests,
     monte_carlo_batch,
@@ -560,8 +561,10 @@ def _rough_spectrum(env: Environment, pipe: Pipe, range_m: float, f: np.ndarray)
     return unit * per_delay
 
 
-def detection(env: Environment, pipe: Pipe, range_m: float, *, draws: int = DEFAULT_DRAWS, seed: int = 0) -> dict:
-    """Probability of detection of ``pipe`` at horizontal range ``range_m`` (m) and its levels.
+def detection(env: Environment, pipe: Pipe, range_m: float, *, draws: int = DEFAULT_DRAWS, seed: int = 0,
+              offsets: int = GRID_OFFSETS) -> dict:
+    """Probability of detection of ``pipe`` at horizontal range ``range_m`` (m) and its levels, the echo's
+    offset from the grid's nodes spread over ``offsets`` values across a range cell.
 
     Returns
     -------
@@ -569,10 +572,11 @@ def detection(env: Environment, pipe: Pipe, range_m: float, *, draws: int = DEFA
         :func:`~clbeam.evaluation.detectability_stats.monte_carlo_tests`' probabilities (``pd``, ...)
         and :func:`channel_model`'s levels.
     """
-    return detections(env, pipe, [range_m], draws=draws, seed=seed)[0]
+    return detections(env, pipe, [range_m], draws=draws, seed=seed, offsets=offsets)[0]
 
 
-def detections(env: Environment, pipe: Pipe, ranges_m, *, draws: int = DEFAULT_DRAWS, seed: int = 0) -> list[dict]:
+def detections(env: Environment, pipe: Pipe, ranges_m, *, draws: int = DEFAULT_DRAWS, seed: int = 0,
+               offsets: int = GRID_OFFSETS) -> list[dict]:
     """:func:`detection` at every horizontal range of ``ranges_m`` (m), the Monte Carlo of all ranges at
     once (:func:`~clbeam.evaluation.detectability_stats.monte_carlo_batch`: each range gets the draws it
     would get alone, common random numbers across ranges)."""
@@ -581,7 +585,7 @@ def detections(env: Environment, pipe: Pipe, ranges_m, *, draws: int = DEFAULT_D
         require(math.isfinite(r) and r > 0, OptionError, f"range must be > 0 m, got {r}")
     built = [channel_model(env, pipe, r) for r in ranges]
     res = monte_carlo_batch([mo for mo, _ in built], env.tests, clutters=[lv["clutter"] for _, lv in built],
-                            sound_speed_m_s=env.c, draws=draws, seed=seed)
+                            sound_speed_m_s=env.c, draws=draws, seed=seed, offsets=offsets)
     return [{**lv, **r} for (_, lv), r in zip(built, res)]
 
 

@@ -36,7 +36,12 @@ from clbeam.imaging.postprocess import HANN7
 SEARCH_CELLS = 2
 #: draws of the channel model per evaluation, and the offsets of the echo from the grid nodes they use
 DEFAULT_DRAWS = 1024
-GRID_OFFSETS = 4
+GRID_OFFSETS = 64
+#: offsets drawn together (memory: models x offsets x draws x lags)
+OFFSET_CHUNK = 16
+#: draws per offset at least: fewer draws spread over fewer offsets (each offset costs a principal root of
+#: every covariance, whatever its draws)
+MIN_DRAWS_PER_OFFSET = 16
 
 
 def cf_exceedance(threshold, n_channels: int, snr) -> np.ndarray:
@@ -185,56 +190,60 @@ def _complex_normals(rng: np.random.Generator, shape: tuple) -> np.ndarray:
 
 
 def _apply(root: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """``root_n z`` for every model ``n``: ``(n, L, L)`` roots on ``(..., L)`` normals, ``(n, ..., L)``."""
-    return np.einsum("...l,nkl->n...k", z, root)     # einsum: no threaded BLAS for tiny products
+    """``root_ng z_g`` for every model ``n`` and offset ``g``: ``(n, G, L, L)`` roots on ``(G, ..., L)``
+    normals, ``(n, G, ..., L)``."""
+    return np.einsum("g...l,ngkl->ng...k", z, root)     # einsum: no threaded BLAS for tiny products
 
 
-def _channel_sums(models: list, lags: np.ndarray, z: list, cov: np.ndarray, rng: np.random.Generator,
+def _channel_sums(models: list, s: np.ndarray, z: list, cov: np.ndarray, rng: np.random.Generator,
                   per: int, exact: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``(A, B) = (Σ p_n, Σ |p_n|²)`` over the channels at each lag, ``(n, per, L)`` each, for ``n`` models
-    with as many reverberation components, drawn from the same normals: the echo, the reverberation
-    draws ``z`` (each ``(n, per, L)``, on its phase ramp) and the noise (covariance ``cov`` ``(n, L, L)``
-    per channel).
+    """``(A, B) = (Σ p_n, Σ |p_n|²)`` over the channels at each lag, ``(n, G, per, L)`` each, for ``n`` models
+    with as many reverberation components at ``G`` offsets of the echo from the grid, drawn from the same
+    normals for every model: the echo's compressed waveform ``s`` ``(n, G, L)``, the reverberation draws
+    ``z`` (each ``(n, G, per, L)``, on its phase ramp) and the noise (covariance ``cov`` ``(G, L, L)`` per
+    channel at unit power, scaled by each model's ``noise_power``: the root of a scaled matrix is the
+    root scaled, so one root serves every model).
 
     Not ``exact``: the channels' space is split into the span ``Q`` of the steering vector and the
     ramps (``q`` directions, drawn exactly) and its complement, whose noise power ``|w_⊥|²`` at a lag
     is a sum of ``M − q`` exponentials, correlated between lags as ``|C|²``: drawn as a Gaussian of
     that mean and covariance (``M − q`` is 61 or more on the SBP29: its skewness, 0.26, is left out).
     """
-    m, n_lags = models[0].n_channels, lags.size
+    m, (g, n_lags) = models[0].n_channels, s.shape[1:]
     n_idx = np.arange(m) - 0.5 * (m - 1)
     steps = np.array([[step for _, step in mo.reverberation] for mo in models]).reshape(len(models), -1)
     ramps = np.exp(1j * steps[:, :, None] * n_idx)                                  # (n, C, M)
-    s = np.stack([mo.echo_waveform(lags) for mo in models])                          # (n, L)
-    root = _sqrt_psd(cov)
+    power = np.array([mo.noise_power for mo in models], dtype=np.float64)
+    root = np.sqrt(power)[:, None, None, None] * _sqrt_psd(cov)[None]
     if exact:
-        p = s[:, None, None, :] + _apply(root, _complex_normals(rng, (per, m, n_lags)))
+        p = s[:, :, None, None, :] + _apply(root, _complex_normals(rng, (g, per, m, n_lags)))
         for k, zk in enumerate(z):
-            p = p + zk[:, :, None, :] * ramps[:, k, None, :, None]
-        return p.sum(axis=2), np.sum(np.abs(p) ** 2, axis=2)
+            p = p + zk[:, :, :, None, :] * ramps[:, k, None, None, :, None]
+        return p.sum(axis=3), np.sum(np.abs(p) ** 2, axis=3)
     basis = np.concatenate([np.ones((len(models), m, 1)), np.swapaxes(ramps[:, steps[0] != 0, :], 1, 2)], axis=2)
     qh = np.swapaxes(np.linalg.qr(basis)[0].conj(), 1, 2)                            # (n, q, M)
     q = qh.shape[1]
     ce = qh.sum(axis=2)
-    pq = s[:, None, None, :] * ce[:, None, :, None] + _apply(root, _complex_normals(rng, (per, q, n_lags)))
+    pq = s[:, :, None, None, :] * ce[:, None, None, :, None] + _apply(root, _complex_normals(rng, (g, per, q, n_lags)))
     for k, zk in enumerate(z):
-        pq = pq + zk[:, :, None, :] * np.einsum("njm,nm->nj", qh, ramps[:, k])[:, None, :, None]
-    a = np.einsum("nj,npjl->npl", ce.conj(), pq)
-    mean = (m - q) * np.real(cov[:, 0, 0])
-    rest = mean[:, None, None] + _apply(_sqrt_psd((m - q) * np.abs(cov) ** 2), rng.standard_normal((per, n_lags)))
-    return a, np.sum(np.abs(pq) ** 2, axis=2) + np.maximum(rest.real, 0.0)
+        pq = pq + zk[:, :, :, None, :] * np.einsum("njm,nm->nj", qh, ramps[:, k])[:, None, None, :, None]
+    a = np.einsum("nj,ngpjl->ngpl", ce.conj(), pq)
+    mean = (m - q) * power[:, None] * np.real(cov[None, :, 0, 0])
+    rest_root = power[:, None, None, None] * _sqrt_psd((m - q) * np.abs(cov) ** 2)[None]
+    rest = mean[:, :, None, None] + _apply(rest_root, rng.standard_normal((g, per, n_lags)))
+    return a, np.sum(np.abs(pq) ** 2, axis=3) + np.maximum(rest.real, 0.0)
 
 
 def _lag_covariances(models: list, lag_sets: list) -> tuple:
-    """The noise's ``(n, U)`` and the reverberation's ``(n, C, U)`` covariances of ``n`` models on one band
-    at every distinct lag difference of ``lag_sets`` (s), at once, and for each set the index array
-    ``(L, L)`` into them."""
+    """The noise's ``(U,)`` covariance at unit power and the reverberation's ``(n, C, U)`` covariances of
+    ``n`` models on one band at every distinct lag difference of ``lag_sets`` (s), at once, and for each set
+    the index array ``(L, L)`` into them."""
     mo = models[0]
     diffs = np.concatenate([(lg[:, None] - lg[None, :]).ravel() for lg in lag_sets])
     key = np.round(diffs * 1e9).astype(np.int64)          # ns
     uniq, inverse = np.unique(key, return_inverse=True)
     phase = np.exp(2j * np.pi * (uniq * 1e-9)[:, None] * mo.frequency_hz)
-    cov_noise = np.array([m.noise_power for m in models])[:, None] * np.einsum("uk,k->u", phase, mo.weight)[None, :]
+    cov_noise = np.einsum("uk,k->u", phase, mo.weight)
     dens = np.array([[d for d, _ in m.reverberation] for m in models]).reshape(len(models), -1, mo.frequency_hz.size)
     cov_rev = np.einsum("uk,nck->ncu", phase, dens * mo.weight ** 2) / mo.bin_hz
     wheres, start = [], 0
@@ -289,7 +298,7 @@ def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, soun
         correlated exponentials, as a Gaussian of the same mean and covariance (:func:`_channel_sums`).
     offsets : int
         Offsets of the echo from the grid's nodes, at the middles of equal parts of a cell (the echo's
-        offset is uniform over a cell).
+        offset is uniform over a cell); at most one per :data:`MIN_DRAWS_PER_OFFSET` draws.
 
     Returns
     -------
@@ -331,10 +340,12 @@ def monte_carlo_batch(models: list, tests: Tests, *, clutters, sound_speed_m_s: 
 
 def _group_tests(models: list, tests: Tests, clutter: np.ndarray, sound_speed_m_s: float, draws: int, seed: int,
                  exact: bool, offsets: int) -> list[dict]:
-    """:func:`monte_carlo_batch` of models whose reverberation arrives from as many directions."""
+    """:func:`monte_carlo_batch` of models whose reverberation arrives from as many directions, the
+    offsets drawn :data:`OFFSET_CHUNK` at a time."""
     rng = np.random.default_rng(seed)
     dr = tests.range_step_m
     half = SEARCH_CELLS + 3
+    offsets = min(offsets, max(draws // MIN_DRAWS_PER_OFFSET, 1))
     per = max(draws // offsets, 1)
     contrast_applies = (tests.min_contrast_db is not None) & (10 * np.log10(np.maximum(clutter, 1e-300)) >= 3.0)
     results = {k: [] for k in ("cf", "snr", "contrast", "cf_ref")}
@@ -343,11 +354,18 @@ def _group_tests(models: list, tests: Tests, clutter: np.ndarray, sound_speed_m_
                  for j in range(offsets)]
     lag_sets = [2.0 * cells / sound_speed_m_s for cells in cell_sets]
     cov_noise, cov_rev, wheres = _lag_covariances(models, lag_sets)
-    for lags, where in zip(lag_sets, wheres):
-        z = [_apply(_sqrt_psd(cov_rev[:, k][:, where]), _complex_normals(rng, (per, lags.size)))
+    spectra = np.stack([mo.echo * mo.weight for mo in models])                       # (n, K)
+    for j0 in range(0, offsets, OFFSET_CHUNK):
+        lags = np.stack(lag_sets[j0:j0 + OFFSET_CHUNK])                                # (G, L)
+        where = np.stack(wheres[j0:j0 + OFFSET_CHUNK])                                 # (G, L, L)
+        g = lags.shape[0]
+        s = np.einsum("glk,nk->ngl", np.exp(2j * np.pi * lags[..., None] * models[0].frequency_hz), spectra)
+        z = [_apply(_sqrt_psd(cov_rev[:, k][:, where]), _complex_normals(rng, (g, per, lags.shape[1])))
              for k in range(cov_rev.shape[1])]
-        a, b = _channel_sums(models, lags, z, cov_noise[:, where], rng, per, exact)
-        for k, v in _offset_tests(a, b, models, tests, 2 * half + 1, clutter, contrast_applies).items():
+        a, b = _channel_sums(models, s, z, cov_noise[where], rng, per, exact)
+        shape = (len(models), g * per, lags.shape[1])
+        for k, v in _offset_tests(a.reshape(shape), b.reshape(shape), models, tests, 2 * half + 1, clutter,
+                                  contrast_applies).items():
             results[k].append(v)
     cf_ok, snr_ok, con_ok, cf_ref = (np.concatenate(results[k], axis=1) for k in ("cf", "snr", "contrast", "cf_ref"))
     return [{"pd": float(np.mean(cf_ok[i] & snr_ok[i] & con_ok[i])), "p_cf": float(np.mean(cf_ok[i])),
