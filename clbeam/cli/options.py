@@ -137,9 +137,11 @@ def add_imaging_options(p: argparse.ArgumentParser, *, min_contrast_db: float | 
                    help=f"error budget of the coherence factor (default {DEFAULT_MAX_CF_ERROR:g}): the largest |dCF| "
                         "on cells within 40 dB of an echo, with CF >= 0.99 at an echo on a node, measured on each "
                         "ping geometry's own point echoes; --interp auto holds it too")
-    g.add_argument("--beams", default="auto", metavar="auto|off|K[:TAPS]",
+    g.add_argument("--beams", default="auto", metavar="auto|off|K[:TAPS[:DOMAIN]]",
                    help="beam-sampled imaging: auto (chosen by the budget with --interp auto), off (every cell "
-                        "directly), or an oversampling K of the aperture's band limit with TAPS interpolation taps")
+                        "directly), or an oversampling K of the aperture's band limit with TAPS interpolation taps, "
+                        "the beams formed in the time domain (delay-and-sum, the default) or the frequency domain "
+                        "(DOMAIN 'frequency': phase ramps on the channels' spectra; straight rays only)")
     g.add_argument("--outputs", default="intensity,cf", metavar="LIST",
                    help="comma-separated outputs: intensity, cf, sums, and cf_smooth (the CF smoothed along range "
                         "that peaks are picked on, written on request) (default intensity,cf)")
@@ -237,11 +239,13 @@ def parse_beams(text: str):
 
     if text in ("auto", "off"):
         return None if text == "off" else "auto"
-    k, _, taps = text.partition(":")
+    k, _, rest = text.partition(":")
+    taps, _, domain = rest.partition(":")
     try:
-        return BeamSampling(float(k), int(taps) if taps else BeamSampling.taps)
+        return BeamSampling(float(k), int(taps) if taps else BeamSampling.taps, domain or BeamSampling.domain)
     except ValueError:
-        raise OptionError(f"--beams must be auto, off or K[:TAPS] (e.g. 1.5:12), got {text!r}") from None
+        raise OptionError(f"--beams must be auto, off or K[:TAPS[:DOMAIN]] (e.g. 1.5:12 or 2:16:frequency), "
+                          f"got {text!r}") from None
 
 
 def grid_from_args(args, max_range_default: float):

@@ -156,12 +156,8 @@ def beam_width_rad(inp: BeamformInput) -> float:
 def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray, mode: InterpMode, *,
                  cf_smooth: np.ndarray | None = None, intensity: np.ndarray | None = None,
                  threshold: float = 0.25, least_intensity: float = 0.0) -> RefinedPeaks:
-    """Refine coherence peaks of ``grid`` to the intensity maximum of their echo.
-
-    A noise-free ping holds tens of thousands of maxima above the CF threshold on its rounding, a hundred dB
-    under its echoes; the SNR test drops them after the refinement.  With ``least_intensity`` (the test's least
-    intensity) a peak whose range search stays more than ``1 / threshold`` and ``SEARCH_CLIMB_MARGIN_DB``
-    below it is left out before the searches along the arc (the result has fewer entries than ``peaks``).
+    """Refine coherence peaks of ``grid`` to the intensity maximum of their echo (with ``least_intensity``, those
+    that cannot reach it left out: :func:`_reaching`).
 
     Parameters
     ----------
@@ -179,35 +175,26 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
         The grid's smoothed CF and intensity: with both, each search starts at
         the most intense cell of the peak's coherent lobe along range.
     threshold : float
-        The peaks' CF threshold (bounds the lobe).
+        The peaks' CF threshold (bounds the lobe and the climb).
     least_intensity : float
-        Intensity (input units squared) the SNR test needs; 0 refines every peak.
+        Intensity (input units squared) the SNR test needs (0: every peak refined).
     """
     peaks = np.asarray(peaks, dtype=np.int64).reshape(-1, 2)
-    if len(peaks) == 0:
-        return _no_peaks()
-    evaluate = _Evaluator(engine, inp, grid, SEARCH_MODE)
     ia, ir = peaks[:, 0], peaks[:, 1]
     if cf_smooth is not None and intensity is not None:
         ir = lobe_maximum(cf_smooth, intensity, ia, ir, threshold)
     climb = search_climb(threshold)
     if least_intensity > 0 and intensity is not None and cf_smooth is not None:
         # the lobe's most intense node, raised by the most an echo can stand above its nodes, then the climb
-        live = np.flatnonzero(~(intensity[ia, ir] * node_gain(inp, grid) * climb < least_intensity))
-        peaks, ia, ir = peaks[live], ia[live], ir[live]
-        if len(peaks) == 0:
-            return _no_peaks()
-    r0, a0 = grid.ranges_m[ir], grid.angles_deg[ia]
-    dr, da = _local_step(grid.ranges_m, ir), _local_step(grid.angles_deg, ia)
-    # 1. along range at the cell's angle
-    r_step = RANGE_SEARCH_STEP * dr
-    k = np.arange(-RANGE_SEARCH_STEPS / RANGE_SEARCH_STEP, RANGE_SEARCH_STEPS / RANGE_SEARCH_STEP + 1)
-    r1, _, level = _best(evaluate, r0[:, None] + k * r_step[:, None], np.broadcast_to(a0[:, None], (len(a0), k.size)))
+        peaks, ia, ir = _reaching(intensity[ia, ir] * node_gain(inp, grid) * climb, least_intensity, peaks, ia, ir)
+    if len(peaks) == 0:
+        return _no_peaks()
+    evaluate = _Evaluator(engine, inp, grid, SEARCH_MODE)
+    r0, a0, dr, da, r_step, r1, level = _range_search(evaluate, grid, ia, ir)   # 1. along range at the cell's angle
     if least_intensity > 0:
-        live = np.flatnonzero(~(level * climb < least_intensity))
-        peaks, r0, a0, r1, dr, da, r_step = (v[live] for v in (peaks, r0, a0, r1, dr, da, r_step))
-        if len(peaks) == 0:
-            return _no_peaks()
+        peaks, r0, a0, r1, dr, da, r_step = _reaching(level * climb, least_intensity, peaks, r0, a0, r1, dr, da, r_step)
+    if len(peaks) == 0:
+        return _no_peaks()
     # the beam's lobe is flat along the arc: a -45 dB interpolation ripple would move its maximum
     evaluate.mode = mode if mode.name == "exact" else ARC_MODE
     # 2. along the echo's equal-delay curve through that point (the grid's arc when the array sits at the centre)
@@ -226,6 +213,25 @@ def refine_peaks(engine, inp: BeamformInput, grid: PolarGrid, peaks: np.ndarray,
     centre = int(np.flatnonzero(taps[used] == 0)[0])
     return RefinedPeaks(range_m=r2, angle_deg=a2, cf_smooth=final.cf @ HANN7[used], cf=final.cf[:, centre],
                         intensity=final.intensity[:, centre], cell=peaks, n_cells=np.ones(len(peaks), dtype=np.int64))
+
+
+def _range_search(evaluate, grid: PolarGrid, ia: np.ndarray, ir: np.ndarray) -> tuple:
+    """The cells' range and angle, the grid's steps there, the search's range step, and the range and intensity
+    of the most intense of the points ``RANGE_SEARCH_STEPS`` either side along range at the cell's angle."""
+    r0, a0 = grid.ranges_m[ir], grid.angles_deg[ia]
+    dr, da = _local_step(grid.ranges_m, ir), _local_step(grid.angles_deg, ia)
+    r_step = RANGE_SEARCH_STEP * dr
+    k = np.arange(-RANGE_SEARCH_STEPS / RANGE_SEARCH_STEP, RANGE_SEARCH_STEPS / RANGE_SEARCH_STEP + 1)
+    r1, _, level = _best(evaluate, r0[:, None] + k * r_step[:, None], np.broadcast_to(a0[:, None], (len(a0), k.size)))
+    return r0, a0, dr, da, r_step, r1, level
+
+
+def _reaching(bound: np.ndarray, least_intensity: float, *columns: np.ndarray) -> tuple:
+    """The ``columns`` of the peaks whose intensity ``bound`` reaches ``least_intensity``: a noise-free ping holds
+    tens of thousands of maxima above the CF threshold on its rounding, a hundred dB under its echoes, which the
+    SNR test drops after the refinement; the searches leave them out first (the result has fewer entries)."""
+    live = np.flatnonzero(~(bound < least_intensity))
+    return tuple(c[live] for c in columns)
 
 
 def search_climb(threshold: float) -> float:

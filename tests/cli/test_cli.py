@@ -47,6 +47,26 @@ def test_image_writes_the_spec_variables_and_finds_each_scatterer(ping_file, tmp
     ds.close()
 
 
+def test_frequency_domain_beams_from_the_command_line_hold_the_budget_against_direct_imaging(ping_file, tmp_path):
+    """``--beams 2:16:frequency`` images with beams formed on the channels' spectra (the file's setting says so)
+    and gives the image of every cell imaged directly with Lanczos-8 (-70 dB) within the default budget:
+    intensity -40 dB, |dCF| 0.02 on cells within 40 dB."""
+    from clbeam.imaging.budget import intensity_error_db
+
+    common = ["--max-range", "55", "--min-range", "30", "--angles", "-5", "25", "-q"]
+    fd, direct = tmp_path / "fd.nc", tmp_path / "direct.nc"
+    assert main(["image", str(ping_file), "-o", str(fd), "--beams", "2:16:frequency", "--interp", "lanczos8"]
+                + common) == 0
+    assert main(["image", str(ping_file), "-o", str(direct), "--beams", "off", "--interp", "lanczos8"] + common) == 0
+    with xr.open_dataset(fd) as a, xr.open_dataset(direct) as b:
+        assert "in the frequency domain" in a.attrs["imaging_setting"]
+        for i in range(a.sizes["ping"]):
+            got, want = (ds["intensity"].isel(ping=i).values.astype(np.float64) for ds in (a, b))
+            assert intensity_error_db(got, want, 40.0) <= -40.0
+            keep = want >= want.max() * 1e-4
+            assert np.max(np.abs(a["cf"].isel(ping=i).values[keep] - b["cf"].isel(ping=i).values[keep])) <= 0.02
+
+
 def test_smoothed_cf_is_written_on_request_as_the_hann_smoothed_cf(ping_file, tmp_path):
     out = tmp_path / "img.nc"
     assert main(["image", str(ping_file), "-o", str(out), "--max-range", "55", "--min-range", "30",
@@ -107,7 +127,8 @@ def test_reference_backend_gives_the_same_image(ping_file, tmp_path):
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--range-res", "1e-7"], "exceeds 2e+09 cells"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--max-error-db", "3"], "must be a negative number of dB"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--max-error-db", "-100"], "no setting reaches -100 dB"),
-    (["image", "{pings}", "-o", "{tmp}/x.nc", "--beams", "wide"], "--beams must be auto, off or K[:TAPS]"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--beams", "wide"], "--beams must be auto, off or K[:TAPS[:DOMAIN]]"),
+    (["image", "{pings}", "-o", "{tmp}/x.nc", "--beams", "2:16:fourier"], "beam domain must be 'time' or 'frequency'"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--beams", "0.5:8"], "beam oversampling must be within 1-16"),
     (["image", "{pings}", "-o", "{tmp}/x.nc", "--beams", "1.5:7"], "beam taps must be an even integer"),
 ])

@@ -302,3 +302,17 @@ def test_an_imager_with_frequency_domain_beams_says_so_and_holds_the_budget():
         keep = exact.intensity >= exact.intensity.max() * 1e-4
         assert intensity_error_db(image.intensity[sa, sr].astype(np.float64), exact.intensity) <= -40.0
         assert np.max(np.abs(image.cf[sa, sr] - exact.cf)[keep]) <= 0.02
+
+
+@pytest.mark.parametrize("positions", [[3.25], [3.25, 7.5]])
+def test_evaluation_at_one_or_two_positions_is_the_direct_sum(positions):
+    """A zone of one range row is evaluated like any other (its message once raised on the empty step list): the
+    sum written out."""
+    from clbeam.imaging.engine.fdbeams import evaluate_at
+
+    rng = np.random.default_rng(0)
+    spectrum = rng.normal(size=(3, 20)) + 1j * rng.normal(size=(3, 20))
+    x = np.asarray(positions, dtype=np.float64)
+    k = 5 + np.arange(20)
+    want = (spectrum[:, None, :] * np.exp(2j * np.pi * k[None, None, :] * x[None, :, None] / 64)).sum(-1) / 64
+    np.testing.assert_allclose(evaluate_at(spectrum, 5, 64, x), want, rtol=1e-9, atol=1e-12)

@@ -313,8 +313,8 @@ def evaluate_at(spectrum: np.ndarray, first_bin: int, length: int, positions: np
     n_bin, m = spectrum.shape[-1], x.size
     step = float(x[1] - x[0]) if m > 1 else 0.0
     require(m < 3 or bool(np.allclose(np.diff(x), step, rtol=0, atol=1e-9 * max(abs(step), 1.0))), GridError,
-            f"frequency-domain beams need uniformly spaced ranges, got steps from {np.diff(x).min():.6g} to "
-            f"{np.diff(x).max():.6g} samples")
+            f"frequency-domain beams need uniformly spaced ranges, got steps from {np.min(np.diff(x), initial=step):.6g} to "
+            f"{np.max(np.diff(x), initial=step):.6g} samples")
     czt = CZT(n_bin, m, w=np.exp(2j * np.pi * step / length), a=np.exp(-2j * np.pi * x[0] / length))
     carrier = np.exp(2j * np.pi * ((first_bin * x / length) % 1.0))
     with scipy.fft.set_workers(WORKERS):          # the transform's FFTs on every core
