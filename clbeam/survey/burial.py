@@ -146,9 +146,15 @@ def offplane_deepening_m(range_m, angle_rad, beam_width_rad: float, band_hz=None
         f0, f1 = sorted((float(band_hz[0]), float(band_hz[1])))
         if f1 > f0:  # lambda^2 weighted by 1 / f over the band, in units of the centre's
             band_factor = (0.5 * (f0 + f1)) ** 2 * (f0 ** -2 - f1 ** -2) / (2.0 * math.log(f1 / f0))
-    mean_square = MAIN_LOBE_MEAN_SQUARE * beam_width_rad ** 2 * band_factor
+    return _mean_deepening_m(range_m, angle_rad, MAIN_LOBE_MEAN_SQUARE * beam_width_rad ** 2 * band_factor)
+
+
+def _mean_deepening_m(range_m, angle_rad, mean_square_rad2: float) -> np.ndarray:
+    """``R E[phi^2] / (2 cos theta)`` (m): how much deeper echoes from off the ping's plane, at mean square
+    angle ``E[phi^2]`` (rad^2) from it, lie on average at range ``R`` (m) and angle ``theta`` (rad, its cosine
+    held at 0.05 at least)."""
     cos_t = np.maximum(np.abs(np.cos(np.asarray(angle_rad, dtype=np.float64))), 0.05)
-    return np.asarray(range_m, dtype=np.float64) * mean_square / (2.0 * cos_t)
+    return np.asarray(range_m, dtype=np.float64) * mean_square_rad2 / (2.0 * cos_t)
 
 
 #: mean square of ``v = L phi / lambda`` over the half of a uniform aperture's one-way main lobe nearest its axis,
@@ -176,8 +182,7 @@ def smear_deepening_m(range_m, angle_rad, beam_width_rad: float) -> np.ndarray:
     beam_width_rad : float
         The transmit beam's width along the track at the band's centre, ``lambda_c / L`` (rad).
     """
-    cos_t = np.maximum(np.abs(np.cos(np.asarray(angle_rad, dtype=np.float64))), 0.05)
-    return np.asarray(range_m, dtype=np.float64) * SMEAR_MEAN_SQUARE * beam_width_rad ** 2 / (2.0 * cos_t)
+    return _mean_deepening_m(range_m, angle_rad, SMEAR_MEAN_SQUARE * beam_width_rad ** 2)
 
 
 def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, n_trials: int = 200,
