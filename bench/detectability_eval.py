@@ -11,7 +11,7 @@ none) is evaluated at the same ranges.  The tuning draws (``--tune-seed``) are t
 model or the scoring was looked at on; the validation draws (``--seeds``) report.
 
     python bench/detectability_eval.py [--pings 24] [--seeds 2 3] [--tune-seed 1] [--tune-pings 12]
-        [--silent-pings 8] [--offsets 64] [--cache DIR]
+        [--silent-pings 8] [--offsets 64] [--beside 8] [--cache DIR]
         [--out docs/detectability_validation.png] [--csv detectability_validation.csv]
 
 ``--cache DIR`` keeps each survey's peaks (a pickle per seabed, seed, pings and silence) so that a rerun
@@ -33,14 +33,14 @@ RANGES = (250.0, 450.0, 650.0, 850.0, 1000.0, 1150.0, 1300.0, 1450.0)
 BURIALS = (1.0, 2.0)
 
 
-def predicted(seabed: str, offsets: int | None = None) -> dict:
+def predicted(seabed: str, offsets: int | None = None, beside: int | None = None) -> dict:
     """``{(burial, range): Pd}`` of the model on the seabed's validation scene (``offsets``: the model's
-    grid offsets, default its own)."""
+    grid offsets, ``beside``: its beams each side of the echo's; default its own)."""
     from clbeam.evaluation.detectability import Environment, Pipe, detections
     from clbeam.evaluation.detectability_validation import validation_scene
 
     env = Environment(validation_scene(seabed, RANGES, BURIALS), absorption_db_per_km=0.0)
-    kw = {} if offsets is None else {"offsets": offsets}
+    kw = {k: v for k, v in (("offsets", offsets), ("beside", beside)) if v is not None}
     return {(b, r): res["pd"] for b in BURIALS
             for r, res in zip(RANGES, detections(env, Pipe(burial_m=b), RANGES, draws=4096, **kw))}
 
@@ -152,6 +152,8 @@ def _arguments(argv):
     ap.add_argument("--silent-pings", type=int, default=8, help="silent pings per seed (default 8; 0: none)")
     ap.add_argument("--offsets", type=int, nargs="+", default=None,
                     help="the model's grid offsets, one table each (default the model's own)")
+    ap.add_argument("--beside", type=int, default=None,
+                    help="the model's beams searched each side of the echo's (default its own; 0: the echo's beam only)")
     ap.add_argument("--cache", default=None, help="folder keeping each survey's peaks")
     ap.add_argument("--out", default="docs/detectability_validation.png", help="figure")
     ap.add_argument("--csv", default=None, help="table of every row (CSV)")
@@ -169,7 +171,7 @@ def main(argv=None) -> None:
     sets.append((f"validation (seeds {' '.join(map(str, args.seeds))}, {args.pings} pings each)", args.seeds, args.pings))
     rows = []
     for offsets in args.offsets or [None]:
-        pred = {(s, *k): v for s in ("mud", "sand") for k, v in predicted(s, offsets).items()}
+        pred = {(s, *k): v for s in ("mud", "sand") for k, v in predicted(s, offsets, args.beside).items()}
         for label, seeds, pings in sets:
             meas = {(s, *k): v for s in ("mud", "sand") for k, v in measured(s, seeds, pings, cache=args.cache).items()}
             silent = {} if not args.silent_pings else {

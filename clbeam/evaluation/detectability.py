@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from clbeam.errors import OptionError, require
+from clbeam.evaluation.detectability_beams import BEAMS_PER_SIDE, side_beams
 from clbeam.evaluation.detectability_stats import (
     DEFAULT_DRAWS,
     GRID_OFFSETS,
@@ -490,7 +491,7 @@ def channel_model(env: Environment, pipe: Pipe, range_m: float) -> tuple[Channel
     geo = pipe_geometry(env, pipe, range_m)
     echo = echo_spectrum(env, pipe, range_m, f)
     p_n = noise_power(env)
-    comps, levels = [], {}
+    comps, levels, directions = [], {}, []
     m = env.scene.sonar.n_elements
     beamwidth = env.c / env.scene.sonar.centre_frequency_hz / env.scene.sonar.array_width_m
     window = _window_coherence(env, f, geo, beamwidth)
@@ -500,6 +501,7 @@ def channel_model(env: Environment, pipe: Pipe, range_m: float) -> tuple[Channel
         spec = r["density"] * w ** 2
         kappa = float(np.sum(spec * _af2(env, f, delta)) / np.sum(spec))
         comps.append((r["density"], phase_step_for_coherence(kappa, m)))
+        directions.append(delta)
         power = float(np.sum(spec)) / BIN_HZ
         levels[f"{r['name']}_db"] = 10 * math.log10(max(power, 1e-300))
         clutter += m * power * float(np.sum(spec * window(delta)) / np.sum(spec))
@@ -507,8 +509,11 @@ def channel_model(env: Environment, pipe: Pipe, range_m: float) -> tuple[Channel
     if rough > 0:
         dens = rough * _rough_spectrum(env, pipe, range_m, f)
         comps.append((dens, 0.0))
+        directions.append(0.0)
         levels["rough_db"] = 10 * math.log10(max(float(np.sum(dens * w ** 2)) / BIN_HZ, 1e-300))
-    model = ChannelModel(f, w, echo, p_n, tuple(comps), m, BIN_HZ)
+    sin_a = min(geo["sin_arrival"], 1.0 - 1e-9)
+    model = ChannelModel(f, w, echo, p_n, tuple(comps), m, BIN_HZ, tuple(directions),
+                         sin_a / math.sqrt(1.0 - sin_a * sin_a))
     peak = abs(model.echo_waveform(0.0))
     levels.update(echo_db=20 * math.log10(max(peak, 1e-300)), noise_db=10 * math.log10(p_n),
                   clutter_over_floor_db=10 * math.log10(1 + clutter / p_n), **geo)
@@ -562,9 +567,10 @@ def _rough_spectrum(env: Environment, pipe: Pipe, range_m: float, f: np.ndarray)
 
 
 def detection(env: Environment, pipe: Pipe, range_m: float, *, draws: int = DEFAULT_DRAWS, seed: int = 0,
-              offsets: int = GRID_OFFSETS) -> dict:
+              offsets: int = GRID_OFFSETS, beside: int = BEAMS_PER_SIDE) -> dict:
     """Probability of detection of ``pipe`` at horizontal range ``range_m`` (m) and its levels, the echo's
-    offset from the grid's nodes spread over ``offsets`` values across a range cell.
+    offset from the grid's nodes spread over ``offsets`` values across a range cell, the CF test searching
+    ``beside`` beams each side of the echo's (:func:`search_beams`; 0: its own beam only).
 
     Returns
     -------
@@ -572,11 +578,20 @@ def detection(env: Environment, pipe: Pipe, range_m: float, *, draws: int = DEFA
         :func:`~clbeam.evaluation.detectability_stats.monte_carlo_tests`' probabilities (``pd``, ...)
         and :func:`channel_model`'s levels.
     """
-    return detections(env, pipe, [range_m], draws=draws, seed=seed, offsets=offsets)[0]
+    return detections(env, pipe, [range_m], draws=draws, seed=seed, offsets=offsets, beside=beside)[0]
+
+
+def search_beams(env: Environment, beside: int = BEAMS_PER_SIDE):
+    """The beams beside the echo's that the CF test searches: ``beside`` each side, evenly in sine out to
+    :data:`~clbeam.evaluation.detectability_beams.BEAM_REACH` beam widths at the band's top
+    (:func:`~clbeam.evaluation.detectability_beams.side_beams`); ``None`` for 0."""
+    so, motion = env.scene.sonar, env.scene.motion
+    heave = 0.0 if motion is None else float(motion.heave_amplitude_m)
+    return side_beams(so.n_elements, so.array_width_m, so.pulse_f1_hz, env.c, per_side=beside, heave_amplitude_m=heave)
 
 
 def detections(env: Environment, pipe: Pipe, ranges_m, *, draws: int = DEFAULT_DRAWS, seed: int = 0,
-               offsets: int = GRID_OFFSETS) -> list[dict]:
+               offsets: int = GRID_OFFSETS, beside: int = BEAMS_PER_SIDE) -> list[dict]:
     """:func:`detection` at every horizontal range of ``ranges_m`` (m), the Monte Carlo of all ranges at
     once (:func:`~clbeam.evaluation.detectability_stats.monte_carlo_batch`: each range gets the draws it
     would get alone, common random numbers across ranges)."""
@@ -585,7 +600,8 @@ def detections(env: Environment, pipe: Pipe, ranges_m, *, draws: int = DEFAULT_D
         require(math.isfinite(r) and r > 0, OptionError, f"range must be > 0 m, got {r}")
     built = [channel_model(env, pipe, r) for r in ranges]
     res = monte_carlo_batch([mo for mo, _ in built], env.tests, clutters=[lv["clutter"] for _, lv in built],
-                            sound_speed_m_s=env.c, draws=draws, seed=seed, offsets=offsets)
+                            sound_speed_m_s=env.c, draws=draws, seed=seed, offsets=offsets,
+                            beams=search_beams(env, beside))
     return [{**lv, **r} for (_, lv), r in zip(built, res)]
 
 

@@ -116,6 +116,13 @@ class ChannelModel:
         ``M``.
     bin_hz : float
         Spacing of ``frequency_hz`` (Hz).
+    directions : tuple of float
+        Each reverberation component's arrival direction off the echo's (sine of the angle from the array's
+        broadside), for the beams beside the echo's (:mod:`~clbeam.evaluation.detectability_beams`); empty:
+        read from its phase step.
+    arrival_tan : float
+        Tangent of the echo's angle from the vertical at the array (the heave's slide of the echo across
+        the beams beside, :class:`~clbeam.evaluation.detectability_beams.Beams`).
     """
 
     frequency_hz: np.ndarray
@@ -125,6 +132,8 @@ class ChannelModel:
     reverberation: tuple
     n_channels: int
     bin_hz: float
+    directions: tuple = ()
+    arrival_tan: float = 0.0
 
     def echo_waveform(self, lag_s) -> np.ndarray:
         """The echo's compressed analytic signal per channel at lags ``lag_s`` (s)."""
@@ -196,8 +205,9 @@ def _apply(root: np.ndarray, z: np.ndarray) -> np.ndarray:
 
 
 def _channel_sums(models: list, s: np.ndarray, z: list, cov: np.ndarray, rng: np.random.Generator,
-                  per: int, exact: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``(A, B) = (Σ p_n, Σ |p_n|²)`` over the channels at each lag, ``(n, G, per, L)`` each, for ``n`` models
+                  per: int, exact: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A, B, N) = (Σ p_n, Σ |p_n|², Σ w_n)`` over the channels at each lag (``N`` the noise's part of ``A``),
+    ``(n, G, per, L)`` each, for ``n`` models
     with as many reverberation components at ``G`` offsets of the echo from the grid, drawn from the same
     normals for every model: the echo's compressed waveform ``s`` ``(n, G, L)``, the reverberation draws
     ``z`` (each ``(n, G, per, L)``, on its phase ramp) and the noise (covariance ``cov`` ``(G, L, L)`` per
@@ -216,22 +226,24 @@ def _channel_sums(models: list, s: np.ndarray, z: list, cov: np.ndarray, rng: np
     power = np.array([mo.noise_power for mo in models], dtype=np.float64)
     root = np.sqrt(power)[:, None, None, None] * _sqrt_psd(cov)[None]
     if exact:
-        p = s[:, :, None, None, :] + _apply(root, _complex_normals(rng, (g, per, m, n_lags)))
+        noise = _apply(root, _complex_normals(rng, (g, per, m, n_lags)))
+        p = s[:, :, None, None, :] + noise
         for k, zk in enumerate(z):
             p = p + zk[:, :, :, None, :] * ramps[:, k, None, None, :, None]
-        return p.sum(axis=3), np.sum(np.abs(p) ** 2, axis=3)
+        return p.sum(axis=3), np.sum(np.abs(p) ** 2, axis=3), noise.sum(axis=3)
     basis = np.concatenate([np.ones((len(models), m, 1)), np.swapaxes(ramps[:, steps[0] != 0, :], 1, 2)], axis=2)
     qh = np.swapaxes(np.linalg.qr(basis)[0].conj(), 1, 2)                            # (n, q, M)
     q = qh.shape[1]
     ce = qh.sum(axis=2)
-    pq = s[:, :, None, None, :] * ce[:, None, None, :, None] + _apply(root, _complex_normals(rng, (g, per, q, n_lags)))
+    noise = _apply(root, _complex_normals(rng, (g, per, q, n_lags)))
+    pq = s[:, :, None, None, :] * ce[:, None, None, :, None] + noise
     for k, zk in enumerate(z):
         pq = pq + zk[:, :, :, None, :] * np.einsum("njm,nm->nj", qh, ramps[:, k])[:, None, None, :, None]
     a = np.einsum("nj,ngpjl->ngpl", ce.conj(), pq)
     mean = (m - q) * power[:, None] * np.real(cov[None, :, 0, 0])
     rest_root = power[:, None, None, None] * _sqrt_psd((m - q) * np.abs(cov) ** 2)[None]
     rest = mean[:, :, None, None] + _apply(rest_root, rng.standard_normal((g, per, n_lags)))
-    return a, np.sum(np.abs(pq) ** 2, axis=3) + np.maximum(rest.real, 0.0)
+    return a, np.sum(np.abs(pq) ** 2, axis=3) + np.maximum(rest.real, 0.0), np.einsum("nj,ngpjl->ngpl", ce.conj(), noise)
 
 
 def _lag_covariances(models: list, lag_sets: list) -> tuple:
@@ -274,7 +286,8 @@ def _offset_tests(a: np.ndarray, b: np.ndarray, models: list, tests: Tests, n_gr
 
 
 def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, sound_speed_m_s: float,
-                      draws: int = DEFAULT_DRAWS, seed: int = 0, exact: bool = False, offsets: int = GRID_OFFSETS) -> dict:
+                      draws: int = DEFAULT_DRAWS, seed: int = 0, exact: bool = False, offsets: int = GRID_OFFSETS,
+                      beams=None) -> dict:
     """Probability that the pipe's echo gives a peak that passes the detection test, by Monte Carlo.
 
     Parameters
@@ -299,20 +312,24 @@ def monte_carlo_tests(model: ChannelModel, tests: Tests, *, clutter: float, soun
     offsets : int
         Offsets of the echo from the grid's nodes, at the middles of equal parts of a cell (the echo's
         offset is uniform over a cell); at most one per :data:`MIN_DRAWS_PER_OFFSET` draws.
+    beams : detectability_beams.Beams, optional
+        Beams beside the echo's whose grid cells the CF test also searches
+        (:mod:`~clbeam.evaluation.detectability_beams`); ``None``: the echo's own beam only.
 
     Returns
     -------
     dict
         ``pd`` (all tests), ``p_cf`` (the grid's smoothed CF), ``p_snr`` and ``p_contrast`` (each with
-        the CF test), the draws' smoothed CF at the refined point ``cf_refined`` and its median
-        ``cf_median``, and whether the clutter test applied (``reverberation_limited``).
+        the CF test), ``pd_own_beam`` (all tests, the CF test on the echo's own beam only), the draws'
+        smoothed CF at the refined point ``cf_refined`` and its median ``cf_median``, and whether the
+        clutter test applied (``reverberation_limited``).
     """
     return monte_carlo_batch([model], tests, clutters=[clutter], sound_speed_m_s=sound_speed_m_s, draws=draws,
-                             seed=seed, exact=exact, offsets=offsets)[0]
+                             seed=seed, exact=exact, offsets=offsets, beams=beams)[0]
 
 
 def monte_carlo_batch(models: list, tests: Tests, *, clutters, sound_speed_m_s: float, draws: int = DEFAULT_DRAWS,
-                      seed: int = 0, exact: bool = False, offsets: int = GRID_OFFSETS) -> list[dict]:
+                      seed: int = 0, exact: bool = False, offsets: int = GRID_OFFSETS, beams=None) -> list[dict]:
     """:func:`monte_carlo_tests` of many models on one band (a sweep's ranges) at once.
 
     Each model gets the very draws it would get alone (the same seed, the same normals through the
@@ -332,29 +349,31 @@ def monte_carlo_batch(models: list, tests: Tests, *, clutters, sound_speed_m_s: 
     out = [None] * len(models)
     for idx in groups.values():
         res = _group_tests([models[i] for i in idx], tests, np.array([clutters[i] for i in idx], dtype=np.float64),
-                           sound_speed_m_s, draws, seed, exact, offsets)
+                           sound_speed_m_s, draws, seed, exact, offsets, beams)
         for i, r in zip(idx, res):
             out[i] = r
     return out
 
 
 def _group_tests(models: list, tests: Tests, clutter: np.ndarray, sound_speed_m_s: float, draws: int, seed: int,
-                 exact: bool, offsets: int) -> list[dict]:
+                 exact: bool, offsets: int, beams) -> list[dict]:
     """:func:`monte_carlo_batch` of models whose reverberation arrives from as many directions, the
-    offsets drawn :data:`OFFSET_CHUNK` at a time."""
+    offsets drawn :data:`OFFSET_CHUNK` at a time; the beams beside the echo's from their own generator, so
+    that the echo's own beam gets the draws it gets alone."""
     rng = np.random.default_rng(seed)
     dr = tests.range_step_m
     half = SEARCH_CELLS + 3
     offsets = min(offsets, max(draws // MIN_DRAWS_PER_OFFSET, 1))
     per = max(draws // offsets, 1)
     contrast_applies = (tests.min_contrast_db is not None) & (10 * np.log10(np.maximum(clutter, 1e-300)) >= 3.0)
-    results = {k: [] for k in ("cf", "snr", "contrast", "cf_ref")}
+    results = {k: [] for k in ("cf", "snr", "contrast", "cf_ref", "beside")}
     # grid cells about the echo at each offset, then the refined point (the echo) with its smoothing neighbours
     cell_sets = [np.r_[((j + 0.5) / offsets - 0.5) * dr + dr * np.arange(-half, half + 1), dr * np.arange(-3, 4)]
                  for j in range(offsets)]
     lag_sets = [2.0 * cells / sound_speed_m_s for cells in cell_sets]
     cov_noise, cov_rev, wheres = _lag_covariances(models, lag_sets)
     spectra = np.stack([mo.echo * mo.weight for mo in models])                       # (n, K)
+    beside = None if beams is None else _Beside(beams, models, lag_sets, 2 * half + 1, spectra, seed)
     for j0 in range(0, offsets, OFFSET_CHUNK):
         lags = np.stack(lag_sets[j0:j0 + OFFSET_CHUNK])                                # (G, L)
         where = np.stack(wheres[j0:j0 + OFFSET_CHUNK])                                 # (G, L, L)
@@ -362,16 +381,65 @@ def _group_tests(models: list, tests: Tests, clutter: np.ndarray, sound_speed_m_
         s = np.einsum("glk,nk->ngl", np.exp(2j * np.pi * lags[..., None] * models[0].frequency_hz), spectra)
         z = [_apply(_sqrt_psd(cov_rev[:, k][:, where]), _complex_normals(rng, (g, per, lags.shape[1])))
              for k in range(cov_rev.shape[1])]
-        a, b = _channel_sums(models, s, z, cov_noise[where], rng, per, exact)
+        a, b, a_noise = _channel_sums(models, s, z, cov_noise[where], rng, per, exact)
         shape = (len(models), g * per, lags.shape[1])
         for k, v in _offset_tests(a.reshape(shape), b.reshape(shape), models, tests, 2 * half + 1, clutter,
                                   contrast_applies).items():
             results[k].append(v)
-    cf_ok, snr_ok, con_ok, cf_ref = (np.concatenate(results[k], axis=1) for k in ("cf", "snr", "contrast", "cf_ref"))
+        if beside is not None:
+            todo = ~results["cf"][-1] & results["snr"][-1] & results["contrast"][-1]
+            results["beside"].append(beside.passes(j0, g, per, (s, a_noise, b.reshape(a_noise.shape)), z,
+                                                   tests.threshold, todo))
+    cf_own, snr_ok, con_ok, cf_ref = (np.concatenate(results[k], axis=1) for k in ("cf", "snr", "contrast", "cf_ref"))
+    cf_ok = cf_own | np.concatenate(results["beside"], axis=1) if beside is not None else cf_own
     return [{"pd": float(np.mean(cf_ok[i] & snr_ok[i] & con_ok[i])), "p_cf": float(np.mean(cf_ok[i])),
              "p_snr": float(np.mean(cf_ok[i] & snr_ok[i])), "p_contrast": float(np.mean(cf_ok[i] & con_ok[i])),
+             "pd_own_beam": float(np.mean(cf_own[i] & snr_ok[i] & con_ok[i])),
              "cf_median": float(np.median(cf_ref[i])), "cf_refined": cf_ref[i],
              "reverberation_limited": bool(contrast_applies[i])} for i in range(len(models))]
+
+
+class _Beside:
+    """The beams beside the echo's for one group of models (:mod:`~clbeam.evaluation.detectability_beams`):
+    the noise's conditional law, the echo in the beams and the reverberation's gains, computed once."""
+
+    def __init__(self, beams, models: list, lag_sets: list, n_grid: int, spectra: np.ndarray, seed: int):
+        from clbeam.evaluation import detectability_beams as db
+
+        f, w = models[0].frequency_hz, models[0].weight
+        self.beams, self.n_grid = beams, n_grid
+        self.grid_lags = np.stack([lg[:n_grid] for lg in lag_sets])                     # (offsets, Lg)
+        self.operator = db.noise_operator(beams, f, w, self.grid_lags[0])
+        self.tan = np.array([m.arrival_tan for m in models], dtype=np.float64)
+        reach = 2 * beams.heave_amplitude_m * float(np.max(np.abs(self.tan))) * float(np.max(np.abs(beams.offsets_sin)))
+        self.echo = db.EchoBeside(beams, f, w, spectra, float(self.grid_lags.min()) - reach / beams.sound_speed_m_s,
+                                  float(self.grid_lags.max()) + reach / beams.sound_speed_m_s)
+        self.gains = np.stack([db.reverberation_gains(beams, f, w, m.reverberation, db.component_directions(m, beams, f, w))
+                               for m in models]).reshape(len(models), -1, beams.offsets_sin.size)
+        self.power = np.array([m.noise_power for m in models], dtype=np.float64)
+        self.rng = np.random.default_rng([int(seed), 32])
+
+    def passes(self, j0: int, g: int, per: int, own: tuple, z: list, threshold: float, todo: np.ndarray) -> np.ndarray:
+        """``(n, g per)`` whether a beam beside passes the CF test, offsets ``j0`` to ``j0 + g``, for the draws
+        ``todo`` (``(n, g per)``: those the echo's own beam does not already decide): the echo in beam ``Δ``
+        slid by the draw's heave ``h`` (up), ``h tan θ Δ`` farther in range."""
+        from clbeam.evaluation.detectability_beams import beside_passes, heave_draws
+
+        b, lg = self.beams, self.n_grid
+        normals = _complex_normals(self.rng, (g * per, b.offsets_sin.size * lg))     # drawn for every draw
+        ni, k = np.nonzero(todo)
+        out = np.zeros(todo.shape, dtype=bool)
+        if ni.size == 0:
+            return out
+        gi, pi = np.divmod(k, per)
+        heave = heave_draws(b.heave_amplitude_m, j0 * per, g * per)[k]
+        shift = 2 * (heave * self.tan[ni])[:, None] * b.offsets_sin / b.sound_speed_m_s   # (N, J)
+        t = self.grid_lags[j0 + gi][:, None, :] - shift[:, :, None]                        # (N, J, Lg)
+        s, a_noise, b_own = own
+        pick = (s[ni, gi, :lg], a_noise[ni, gi, pi, :lg], b_own[ni, gi, pi, :lg])
+        out[ni, k] = beside_passes(b, self.operator, self.echo.at(t, ni), pick, [zk[ni, gi, pi, :lg] for zk in z],
+                                   self.gains[ni], self.power[ni], normals[k], threshold)
+        return out
 
 
 def phase_step_for_coherence(kappa: float, n_channels: int) -> float:
