@@ -44,6 +44,15 @@ BEAM_REACH = 1.0
 BEAMS_PER_SIDE = 8
 
 
+def sqrt_psd(cov: np.ndarray) -> np.ndarray:
+    """The principal square root ``V sqrt(Λ) V^H`` of Hermitian positive semi-definite matrices
+    ``(..., L, L)`` (negative rounding in ``Λ`` clipped).  Unlike the eigenvectors scaled, ``V sqrt(Λ)``,
+    it is continuous in the matrix: the same normals give nearby draws for nearby covariances, so the
+    draws are common random numbers across ranges and Pd is smooth in range."""
+    vals, vecs = np.linalg.eigh(0.5 * (cov + np.swapaxes(cov.conj(), -1, -2)))
+    return (vecs * np.sqrt(np.maximum(vals, 0.0))[..., None, :]) @ np.swapaxes(vecs.conj(), -1, -2)
+
+
 @dataclass(frozen=True)
 class Beams:
     """The beams beside the echo's that the detection test searches.
@@ -137,8 +146,6 @@ def noise_operator(beams: Beams, f_hz: np.ndarray, weight: np.ndarray, grid_lags
     key = (f_hz.tobytes(), weight.tobytes(), beams.offsets_sin.tobytes(), beams.n_channels, beams.pitch_m,
            beams.sound_speed_m_s, np.round(lags * 1e12).astype(np.int64).tobytes())
     if key not in _OPERATORS:
-        from clbeam.evaluation.detectability_stats import _sqrt_psd
-
         j, own = beams.offsets_sin.size, np.zeros(lags.size)
         lag_b, dir_b = np.tile(lags, j), np.repeat(beams.offsets_sin, lags.size)
         c_oo = _covariance(beams, f_hz, weight, lags, own, lags, own)
@@ -149,7 +156,7 @@ def noise_operator(beams: Beams, f_hz: np.ndarray, weight: np.ndarray, grid_lags
         gain = c_bo @ ((vecs[:, keep] / vals[keep]) @ vecs[:, keep].conj().T)
         if len(_OPERATORS) > 8:
             _OPERATORS.clear()
-        _OPERATORS[key] = (gain, _sqrt_psd(c_bb - gain @ c_bo.conj().T))
+        _OPERATORS[key] = (gain, sqrt_psd(c_bb - gain @ c_bo.conj().T))
     return _OPERATORS[key]
 
 

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from clbeam.errors import OptionError, require
+from clbeam.evaluation import detectability_beams as db
+from clbeam.evaluation.detectability_beams import beside_passes, heave_draws, sqrt_psd
 from clbeam.imaging.postprocess import HANN7
 
 #: grid cells either side of the echo whose smoothed CF can make the pipe's peak
@@ -183,15 +185,6 @@ class Tests:
         require(self.range_step_m > 0, OptionError, f"range step must be > 0 m, got {self.range_step_m!r}")
 
 
-def _sqrt_psd(cov: np.ndarray) -> np.ndarray:
-    """The principal square root ``V sqrt(Λ) V^H`` of Hermitian positive semi-definite matrices
-    ``(..., L, L)`` (negative rounding in ``Λ`` clipped).  Unlike the eigenvectors scaled, ``V sqrt(Λ)``,
-    it is continuous in the matrix: the same normals give nearby draws for nearby covariances, so the
-    draws are common random numbers across ranges and Pd is smooth in range."""
-    vals, vecs = np.linalg.eigh(0.5 * (cov + np.swapaxes(cov.conj(), -1, -2)))
-    return (vecs * np.sqrt(np.maximum(vals, 0.0))[..., None, :]) @ np.swapaxes(vecs.conj(), -1, -2)
-
-
 def _complex_normals(rng: np.random.Generator, shape: tuple) -> np.ndarray:
     """Circular complex Gaussians of unit power (the real parts drawn first, then the imaginary)."""
     re = rng.standard_normal(shape)
@@ -224,7 +217,7 @@ def _channel_sums(models: list, s: np.ndarray, z: list, cov: np.ndarray, rng: np
     steps = np.array([[step for _, step in mo.reverberation] for mo in models]).reshape(len(models), -1)
     ramps = np.exp(1j * steps[:, :, None] * n_idx)                                  # (n, C, M)
     power = np.array([mo.noise_power for mo in models], dtype=np.float64)
-    root = np.sqrt(power)[:, None, None, None] * _sqrt_psd(cov)[None]
+    root = np.sqrt(power)[:, None, None, None] * sqrt_psd(cov)[None]
     if exact:
         noise = _apply(root, _complex_normals(rng, (g, per, m, n_lags)))
         p = s[:, :, None, None, :] + noise
@@ -241,7 +234,7 @@ def _channel_sums(models: list, s: np.ndarray, z: list, cov: np.ndarray, rng: np
         pq = pq + zk[:, :, :, None, :] * np.einsum("njm,nm->nj", qh, ramps[:, k])[:, None, None, :, None]
     a = np.einsum("nj,ngpjl->ngpl", ce.conj(), pq)
     mean = (m - q) * power[:, None] * np.real(cov[None, :, 0, 0])
-    rest_root = power[:, None, None, None] * _sqrt_psd((m - q) * np.abs(cov) ** 2)[None]
+    rest_root = power[:, None, None, None] * sqrt_psd((m - q) * np.abs(cov) ** 2)[None]
     rest = mean[:, :, None, None] + _apply(rest_root, rng.standard_normal((g, per, n_lags)))
     return a, np.sum(np.abs(pq) ** 2, axis=3) + np.maximum(rest.real, 0.0), np.einsum("nj,ngpjl->ngpl", ce.conj(), noise)
 
@@ -379,7 +372,7 @@ def _group_tests(models: list, tests: Tests, clutter: np.ndarray, sound_speed_m_
         where = np.stack(wheres[j0:j0 + OFFSET_CHUNK])                                 # (G, L, L)
         g = lags.shape[0]
         s = np.einsum("glk,nk->ngl", np.exp(2j * np.pi * lags[..., None] * models[0].frequency_hz), spectra)
-        z = [_apply(_sqrt_psd(cov_rev[:, k][:, where]), _complex_normals(rng, (g, per, lags.shape[1])))
+        z = [_apply(sqrt_psd(cov_rev[:, k][:, where]), _complex_normals(rng, (g, per, lags.shape[1])))
              for k in range(cov_rev.shape[1])]
         a, b, a_noise = _channel_sums(models, s, z, cov_noise[where], rng, per, exact)
         shape = (len(models), g * per, lags.shape[1])
@@ -404,8 +397,6 @@ class _Beside:
     the noise's conditional law, the echo in the beams and the reverberation's gains, computed once."""
 
     def __init__(self, beams, models: list, lag_sets: list, n_grid: int, spectra: np.ndarray, seed: int):
-        from clbeam.evaluation import detectability_beams as db
-
         f, w = models[0].frequency_hz, models[0].weight
         self.beams, self.n_grid = beams, n_grid
         self.grid_lags = np.stack([lg[:n_grid] for lg in lag_sets])                     # (offsets, Lg)
@@ -423,8 +414,6 @@ class _Beside:
         """``(n, g per)`` whether a beam beside passes the CF test, offsets ``j0`` to ``j0 + g``, for the draws
         ``todo`` (``(n, g per)``: those the echo's own beam does not already decide): the echo in beam ``Δ``
         slid by the draw's heave ``h`` (up), ``h tan θ Δ`` farther in range."""
-        from clbeam.evaluation.detectability_beams import beside_passes, heave_draws
-
         b, lg = self.beams, self.n_grid
         normals = _complex_normals(self.rng, (g * per, b.offsets_sin.size * lg))     # drawn for every draw
         ni, k = np.nonzero(todo)
