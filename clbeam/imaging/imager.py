@@ -46,7 +46,7 @@ from clbeam.imaging.budget import (
 from clbeam.imaging.engine import BeamformInput, Sums, get_engine, interp_mode
 from clbeam.imaging.engine.beams import BeamSampling
 from clbeam.imaging.engine.common import cell_windows, check_mode_runs_on, check_outputs, min_channels_of, user_windows
-from clbeam.imaging.engine.errormodel import Setting, choose_setting, predicted_settings
+from clbeam.imaging.engine.errormodel import BEAM_CHOICES, Setting, choose_setting, predicted_settings
 from clbeam.imaging.geometry import check_positions, to_earth_frame
 from clbeam.imaging.peaks import PingContext, peak_rows
 from clbeam.imaging.postprocess import hann_smooth, hann_smooth_in_windows
@@ -311,13 +311,9 @@ class Imager:
         self._warned_beyond = False
 
     # -- preparation ------------------------------------------------------
-    def analytic_channels(self, ping: Ping) -> tuple[np.ndarray, np.ndarray]:
-        """Pulse-compressed analytic signal of the usable channels.
-
-        Returns ``(data, used)``: complex ``(n_used, n_sample)`` and the bool
-        mask of the channels used.  Channels flagged invalid, entirely zero or
-        entirely non-finite are left out (logged).
-        """
+    def usable_channels(self, ping: Ping) -> np.ndarray:
+        """Bool mask of the channels imaged: those not flagged invalid, entirely zero or entirely
+        non-finite (the others logged), their non-finite samples counted in the log."""
         x = ping.samples
         used = np.asarray(ping.channel_valid, dtype=bool).copy()
         finite = np.isfinite(x)
@@ -329,17 +325,24 @@ class Imager:
         n_bad = int((~finite[used]).sum())
         if n_bad:
             log.warning("ping %d: %d non-finite sample(s) skipped", ping.index, n_bad)
+        return used
+
+    def analytic_channels(self, ping: Ping, used: np.ndarray, upsample: int = 1) -> np.ndarray:
+        """Pulse-compressed analytic signal of the channels ``used`` (bool mask), complex
+        ``(n_used, upsample n_sample)`` at ``upsample`` times the record's rate (raw pings: one inverse
+        transform for compression and upsampling, :func:`compress_analytic`), non-finite samples NaN."""
+        x = ping.samples[used]
         if ping.kind == "raw":
             require(ping.pulse is not None, OptionError, "raw samples need a pulse description to compress")
-            data = compress_analytic(x[used], ping.pulse.replica(ping.sample_rate_hz),
-                                     precision=compression_precision(x[used], self.engine.precision))
+            data = compress_analytic(x, ping.pulse.replica(ping.sample_rate_hz),
+                                     precision=compression_precision(x, self.engine.precision), upsample=upsample)
         else:
             complex_type = np.complex64 if self.engine.precision == "float32" else np.complex128
-            data = np.where(finite[used], x[used], np.nan).astype(complex_type)
+            data = upsample_analytic(np.where(np.isfinite(x), x, np.nan).astype(complex_type), upsample)
         factors = calibration_factors(ping.element_gain_db, ping.element_phase_deg, ping.n_channels)
         if self.options.calibrate and factors is not None:
             data *= factors[used, None]
-        return data, used
+        return data
 
     def beamform_input(self, ping: Ping) -> BeamformInput:
         """Everything the engine needs for ``ping``: analytic channels and
@@ -350,7 +353,7 @@ class Imager:
         """The engine's input for ``ping`` and the setting it is imaged with."""
         check_positions("element positions", ping.element_pos_m)
         check_positions("source position", ping.source_pos_m)
-        data, used = self.analytic_channels(ping)
+        used = self.usable_channels(ping)
         elements = to_earth_frame(ping.element_pos_m[used], roll_deg=ping.roll_deg, heave_m=ping.heave_m)
         source = to_earth_frame(ping.source_pos_m, roll_deg=ping.roll_deg, heave_m=ping.heave_m)
         centre = np.r_[0.0, self.grid.centre(tuple(ping.source_pos_m[1:]))]
@@ -360,12 +363,15 @@ class Imager:
             fc = 0.5 * (band[0] + band[1])
         window = parse_window(self.options.apodization)
         weights = None if window.uniform else receive_weights(window, ping.element_pos_m[:, 1])[used]
+        # the record's shape without its samples (the setting needs the geometry, not the data): the channels
+        # are compressed once the setting's upsampling is known, in the same inverse transform
+        record = np.broadcast_to(np.zeros((), np.complex64), (int(used.sum()), ping.samples.shape[1]))
         inp = BeamformInput(
-            data=data, sample_rate_hz=ping.sample_rate_hz, t0_s=ping.t0_s - compression_delay_s(ping),
+            data=record, sample_rate_hz=ping.sample_rate_hz, t0_s=ping.t0_s - compression_delay_s(ping),
             sound_speed_m_s=self.options.sound_speed_m_s or ping.sound_speed_m_s,
             element_offsets_m=elements - centre, source_offset_m=source - centre,
             centre_frequency_hz=fc or 0.0, weights=weights, band_hz=band,
-            min_channels=min_channels_of(self.options.min_channels, data.shape[0]),
+            min_channels=min_channels_of(self.options.min_channels, record.shape[0]),
             data_token=object())  # one token a ping: the engine uploads its channels once for every stage
         check_grid_reaches_record(inp, self.grid)   # before the setting, which is measured on the record's cells
         profile = self._travel_profile(ping, inp, float(centre[2]))
@@ -373,11 +379,10 @@ class Imager:
         # ping comes first; each ping's beams still follow its own roll and heave (their band limit)
         mounted = dataclasses.replace(inp, element_offsets_m=ping.element_pos_m[used] - centre,
                                       source_offset_m=ping.source_pos_m - centre)
-        setting = self.setting(ping.element_pos_m[used] - centre, band, ping, data.shape[1], geometry=mounted,
+        setting = self.setting(ping.element_pos_m[used] - centre, band, ping, record.shape[1], geometry=mounted,
                                profile=(profile, float(centre[2])))
-        if setting.upsample > 1:
-            inp = dataclasses.replace(inp, data=upsample_analytic(data, setting.upsample),
-                                      sample_rate_hz=ping.sample_rate_hz * setting.upsample)
+        inp = dataclasses.replace(inp, data=self.analytic_channels(ping, used, setting.upsample),
+                                  sample_rate_hz=ping.sample_rate_hz * setting.upsample)
         return self._with_tables(inp, profile, float(centre[2])), setting
 
     def setting_of(self, ping: Ping) -> Setting:
@@ -420,27 +425,47 @@ class Imager:
         key = (tuple(band), ping.sample_rate_hz, round(c), across.round(3).tobytes(), n_samples, refracted)
         setting = self._settings.get(key)
         if setting is None:
-            span = float(np.deg2rad(np.ptp(self.grid.angles_deg)))
-            predicted = predicted_settings(across, band, ping.sample_rate_hz, c, n_angles=self.grid.shape[0],
-                                           n_ranges=self.grid.shape[1], angle_span_rad=span, n_samples=n_samples)
-            if refracted and beams == "auto":
-                # the band limit of refracted sums is measured on the tables, not bounded: taps to spare
-                predicted = [s for s in predicted if s.beams is None or s.beams.taps >= REFRACTED_MIN_TAPS]
+            predicted = self._predicted(across, band, ping.sample_rate_hz, c, n_samples, beams, refracted)
             setting = choose_setting(predicted, opts.max_error_db, interp=forced,
                                      upsample=opts.upsample or (1 if forced else None), beams=beams)
-            if geometry is not None and forced is None and beams == "auto" and opts.upsample is None:
-                setting = self._measured_setting(predicted, geometry, band, ping, profile)
+            # forced beams (straight rays for the frequency domain's) still measure the time interpolation
+            measured = beams == "auto" or (isinstance(beams, BeamSampling)
+                                           and (beams.domain == "time" or profile[0] is None))
+            if geometry is not None and forced is None and measured and opts.upsample is None:
+                setting = self._measured_setting(predicted, geometry, band, ping, profile, beams)
             log.info("imaging setting: %s", setting.describe())
             self._settings[key] = setting
         return setting
 
-    def _measured_setting(self, predicted: list, geometry: BeamformInput, band, ping: Ping, profile: tuple) -> Setting:
+    def _predicted(self, across_m: np.ndarray, band, sample_rate_hz: float, c: float, n_samples: int, beams,
+                   refracted: bool) -> list[Setting]:
+        """The error model's settings for elements ``across_m`` (m) from the centre, band (Hz), rate (Hz), sound
+        speed (m/s) and record: the candidate beam samplings and a forced one's time-domain twin."""
+        span = float(np.deg2rad(np.ptp(self.grid.angles_deg)))
+        twin = dataclasses.replace(beams, domain="time") if isinstance(beams, BeamSampling) else None
+        samplings = BEAM_CHOICES + ((twin,) if twin is not None and twin not in BEAM_CHOICES else ())
+        predicted = predicted_settings(across_m, band, sample_rate_hz, c, n_angles=self.grid.shape[0],
+                                       n_ranges=self.grid.shape[1], angle_span_rad=span, n_samples=n_samples,
+                                       samplings=samplings)
+        if refracted and beams == "auto":
+            # the band limit of refracted sums is measured on the tables, not bounded: taps to spare
+            predicted = [s for s in predicted if s.beams is None or s.beams.taps >= REFRACTED_MIN_TAPS]
+        return predicted
+
+    def _measured_setting(self, predicted: list, geometry: BeamformInput, band, ping: Ping, profile: tuple,
+                          beams="auto") -> Setting:
         """The cheapest of the settings predicted within the intensity budget whose errors measured on
         echoes of the ping's pulse through ``geometry`` hold the whole budget
-        (:func:`clbeam.imaging.budget.choose_measured_setting`)."""
+        (:func:`clbeam.imaging.budget.choose_measured_setting`); with forced ``beams`` (a BeamSampling), the
+        cheapest time interpolation and upsampling with those beams (every one measured when the model
+        predicts none within the budget)."""
         opts = self.options
         budget = Budget(max_error_db=opts.max_error_db, max_cf_error=opts.max_cf_error)
         candidates = [s for s in predicted if s.error_db <= opts.max_error_db]
+        if isinstance(beams, BeamSampling):
+            twin = dataclasses.replace(beams, domain="time")     # the model's bound for either domain
+            own = [dataclasses.replace(s, beams=beams) for s in predicted if s.beams == twin]
+            candidates = [s for s in own if s.error_db <= opts.max_error_db] or own
         replica = ping.pulse.replica(ping.sample_rate_hz) if ping.pulse is not None else None
         key = measurement_key(geometry, self.grid, band, replica, profile, budget, candidates, self.engine)
         setting, measured = remembered_choice(key, lambda: choose_measured_setting(

@@ -13,7 +13,8 @@ import numpy as np
 from clbeam.errors import OptionError, require
 
 
-def compress_analytic(samples: np.ndarray, replica: np.ndarray, precision: str = "float64") -> np.ndarray:
+def compress_analytic(samples: np.ndarray, replica: np.ndarray, precision: str = "float64",
+                      upsample: int = 1) -> np.ndarray:
     """Pulse compression and analytic signal of real channels in one FFT pass.
 
     ``y[k] = Σ_m x[k + m] r[m] / Σ_m r[m]²`` (the cross-correlation of the
@@ -36,12 +37,21 @@ def compress_analytic(samples: np.ndarray, replica: np.ndarray, precision: str =
     precision : {"float64", "float32"}
         Arithmetic of the FFTs: float32 (for a float32 engine) moves half the
         memory and is 2-10x faster, within 3e-7 of float64.
+    upsample : int
+        Output samples per input sample: the compressed spectrum is
+        zero-padded before its one inverse transform (band-limited
+        interpolation of the whole correlation, so no wrap-around at the
+        record's ends), output sample ``k`` at input time ``k / upsample``.
 
     Returns
     -------
     numpy.ndarray
-        complex128 (complex64 with float32), same shape as ``samples``.
+        complex128 (complex64 with float32), shape of ``samples`` with
+        ``upsample`` times the samples.
     """
+    require(int(upsample) == upsample and upsample >= 1, OptionError,
+            f"upsampling factor must be a positive integer, got {upsample!r}")
+    up = int(upsample)
     real = np.float32 if precision == "float32" else np.float64
     x = np.asarray(samples, dtype=real)
     r = np.asarray(replica, dtype=np.float64)
@@ -55,20 +65,43 @@ def compress_analytic(samples: np.ndarray, replica: np.ndarray, precision: str =
     import scipy.fft  # here, not at the top: analytic pings never need it (0.2-0.3 s of start-up)
 
     nfft = scipy.fft.next_fast_len(n + m - 1)
-    # real-input FFT of the channels; the analytic spectrum is its positive
-    # half (DC and Nyquist once, the rest doubled) with zeros above
+    # the analytic spectrum: the real FFT's half (DC and Nyquist once, the rest doubled), zeros above
     half = scipy.fft.rfft(x, nfft, axis=-1, workers=-1)
-    half *= (np.conj(scipy.fft.rfft(r, nfft)) * analytic_weights(nfft)[:half.shape[-1]] / energy).astype(half.dtype)
-    spec = np.zeros(x.shape[:-1] + (nfft,), dtype=half.dtype)
-    spec[..., :half.shape[-1]] = half
-    y = scipy.fft.ifft(spec, axis=-1, workers=-1, overwrite_x=True)[..., :n]
+    weights = analytic_weights(nfft)[:half.shape[-1]] * (up / energy)    # up: the longer inverse's 1/L
+    half *= (np.conj(scipy.fft.rfft(r, nfft)) * weights).astype(half.dtype)
+    y = scipy.fft.ifft(_padded_spectrum(half, nfft, up), axis=-1, workers=-1, overwrite_x=True)[..., :up * n]
     if any_bad:
-        # y[k] uses x[k .. k+m-1]: it is corrupted when any of those was bad.
-        padded = np.concatenate([np.zeros(bad.shape[:-1] + (1,)), bad, np.zeros(bad.shape[:-1] + (m,))], axis=-1)
-        hits = np.cumsum(padded, axis=-1)
-        window = hits[..., m:m + n] - hits[..., :n]
-        y[window > 0] = np.nan + 1j * np.nan
+        mark_corrupted(y, _touched_by(bad, m), up)
     return y
+
+
+def _padded_spectrum(half: np.ndarray, nfft: int, up: int) -> np.ndarray:
+    """The analytic spectrum ``half`` (the ``nfft``-point transform's non-negative bins) zero-padded to
+    ``up nfft`` bins; an even transform's Nyquist bin split between its two ends."""
+    spec = np.zeros(half.shape[:-1] + (up * nfft,), dtype=half.dtype)
+    spec[..., :half.shape[-1]] = half
+    if up > 1 and nfft % 2 == 0:
+        spec[..., half.shape[-1] - 1] *= 0.5
+        spec[..., up * nfft - nfft // 2] = spec[..., half.shape[-1] - 1]
+    return spec
+
+
+def _touched_by(bad: np.ndarray, m: int) -> np.ndarray:
+    """Whether the correlation window ``x[k .. k + m - 1]`` of each output sample ``k`` holds a bad sample."""
+    n = bad.shape[-1]
+    padded = np.concatenate([np.zeros(bad.shape[:-1] + (1,)), bad, np.zeros(bad.shape[:-1] + (m,))], axis=-1)
+    hits = np.cumsum(padded, axis=-1)
+    return (hits[..., m:m + n] - hits[..., :n]) > 0
+
+
+def mark_corrupted(out: np.ndarray, bad: np.ndarray, factor: int) -> None:
+    """Set to NaN every sample of ``out`` (``factor`` samples per sample of ``bad``'s rate) within one input
+    sample of a True entry of ``bad`` (``(..., n)`` bool)."""
+    idx = np.nonzero(bad)
+    n_out = out.shape[-1]
+    for offset in range(-factor + 1, factor):
+        k = np.clip(idx[-1] * factor + offset, 0, n_out - 1)
+        out[idx[:-1] + (k,)] = np.nan
 
 
 def analytic_weights(nfft: int) -> np.ndarray:
@@ -111,10 +144,7 @@ def upsample_analytic(signal: np.ndarray, factor: int) -> np.ndarray:
     out = scipy.fft.ifft(padded, axis=-1, workers=-1, overwrite_x=True)
     out *= factor
     if bad.any():
-        idx = np.nonzero(bad)
-        for offset in range(-factor + 1, factor):
-            k = np.clip(idx[-1] * factor + offset, 0, n * factor - 1)
-            out[idx[:-1] + (k,)] = np.nan
+        mark_corrupted(out, bad, factor)
     return out
 
 

@@ -41,6 +41,36 @@ def test_compression_equals_scipy_correlate_then_hilbert():
         np.testing.assert_allclose(y[ch], expected, rtol=0, atol=1e-10 * np.abs(expected).max())
 
 
+@pytest.mark.parametrize("n", [2000, 2001])
+@pytest.mark.parametrize("factor", [2, 4])
+def test_compression_with_upsampling_is_the_fourier_resampled_correlation(n, factor):
+    """One inverse transform for compression and upsampling: scipy's Fourier resampling of the analytic
+    circular correlation (the Nyquist bin split between both ends), even and odd transform lengths."""
+    rng = np.random.default_rng(4)
+    rep = lfm_replica(f0_hz=2000, f1_hz=9000, duration_s=0.01, sample_rate_hz=FS)
+    m = rep.size
+    x = rng.standard_normal((2, n))
+    y = compress_analytic(x, rep, upsample=factor)
+    assert y.shape == (2, factor * n)
+    nfft = scipy.fft.next_fast_len(n + m - 1)
+    for ch in range(2):
+        lags = scipy.signal.correlate(x[ch], rep, mode="full") / np.dot(rep, rep)
+        circ = np.zeros(nfft)
+        circ[:n] = lags[m - 1:]
+        circ[nfft - (m - 1):] = lags[:m - 1]
+        expected = scipy.signal.resample(scipy.signal.hilbert(circ), factor * nfft)[:factor * n]
+        np.testing.assert_allclose(y[ch], expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+
+
+def test_upsampled_compression_marks_the_samples_beside_corrupted_outputs():
+    rep = np.ones(5)
+    x = np.arange(40.0)
+    x[20] = np.nan
+    y = compress_analytic(x, rep, upsample=2)
+    # y[k] (input rate) touched the NaN for k = 16..20: the upsampled samples 31..41 lie beside them
+    assert np.flatnonzero(np.isnan(y)).tolist() == list(range(31, 42))
+
+
 def test_compressed_echo_peaks_at_arrival_with_its_amplitude():
     rep = lfm_replica(f0_hz=2000, f1_hz=9000, duration_s=0.02, sample_rate_hz=FS)
     x = np.zeros(4000)
