@@ -141,7 +141,9 @@ def add_imaging_options(p: argparse.ArgumentParser, *, min_contrast_db: float | 
                    help="beam-sampled imaging: auto (chosen by the budget with --interp auto), off (every cell "
                         "directly), or an oversampling K of the aperture's band limit with TAPS interpolation taps, "
                         "the beams formed in the time domain (delay-and-sum, the default) or the frequency domain "
-                        "(DOMAIN 'frequency': phase ramps on the channels' spectra; straight rays only)")
+                        "(DOMAIN 'frequency': phase ramps on the channels' spectra; straight rays only); with "
+                        "--interp auto, the time interpolation and upsampling that go with given beams are measured "
+                        "on the ping's geometry")
     g.add_argument("--outputs", default="intensity,cf", metavar="LIST",
                    help="comma-separated outputs: intensity, cf, sums, and cf_smooth (the CF smoothed along range "
                         "that peaks are picked on, written on request) (default intensity,cf)")

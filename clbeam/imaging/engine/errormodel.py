@@ -182,7 +182,8 @@ class Setting:
 
 
 def predicted_settings(offsets_m: np.ndarray, band_hz: tuple, sample_rate_hz: float, sound_speed_m_s: float, *,
-                       n_angles: int, n_ranges: int, angle_span_rad: float, n_samples: int) -> list[Setting]:
+                       n_angles: int, n_ranges: int, angle_span_rad: float, n_samples: int,
+                       samplings: tuple = BEAM_CHOICES) -> list[Setting]:
     """Every candidate setting with its predicted error and cost, for one array, band and grid.
 
     Parameters
@@ -201,11 +202,13 @@ def predicted_settings(offsets_m: np.ndarray, band_hz: tuple, sample_rate_hz: fl
         Output angle span (rad).
     n_samples : int
         Samples per channel of the record.
+    samplings : tuple of BeamSampling
+        The beam samplings to predict (time domain).
     """
     n_channels = len(offsets_m)
     limit = band_hz[1] * float(np.max(np.abs(offsets_m))) / sound_speed_m_s   # cycles per radian
     beams = []
-    for sampling in BEAM_CHOICES:
+    for sampling in samplings:
         step = 1.0 / (2.0 * limit * sampling.oversampling)
         nu, power = angular_spectrum(offsets_m, band_hz, sound_speed_m_s, step)
         n_beams = angle_span_rad / step + sampling.taps + 1

@@ -360,25 +360,43 @@ def frequency_beam_sums(inp, grid: PolarGrid, *, time_domain, steer=steer_numpy,
     out = BeamSums(s=np.zeros(shape, np.complex128), q=np.zeros(shape), m=np.zeros(shape, np.int32),
                    signature=None if channel_numbers is None else np.zeros(shape),
                    w=None if inp.weights is None else np.zeros(shape))
-    time_rows = _zones_into(inp, grid, zones, steer, scale, margin, channel_numbers, out)
+    time_rows = _zones_into(inp, grid, zones, steer, scale, margin, channel_numbers, out, window_m)
     _time_domain_rows(grid, time_rows, time_domain, out)
     if window_m is not None:
         _clear_outside(grid, window_m, out)
     return out
 
 
-def _zones_into(inp, grid, zones: ZonePlan, steer, scale: float, margin: int, channel_numbers, out: BeamSums):
-    """Every zone's sums into ``out``; returns the rows left to the time domain (bool per row)."""
+def zone_beams(grid: PolarGrid, rows: slice, window_m: np.ndarray | None) -> np.ndarray:
+    """Indices of the beams whose range interval (``window_m``, ``(n_beam, 2)`` m; ``None``: every beam) meets
+    the zone's ``rows`` of ``grid``: the only ones a zone's sums are formed on."""
+    if window_m is None:
+        return np.arange(grid.shape[0])
+    rw = np.asarray(window_m, dtype=np.float64)
+    require(rw.shape == (grid.shape[0], 2), GeometryError,
+            f"beam windows must be (n_beam, 2) = ({grid.shape[0]}, 2), got {rw.shape}")
+    r0, r1 = float(grid.ranges_m[rows.start]), float(grid.ranges_m[rows.stop - 1])
+    return np.flatnonzero((rw[:, 0] <= r1) & (rw[:, 1] >= r0))
+
+
+def _zones_into(inp, grid, zones: ZonePlan, steer, scale: float, margin: int, channel_numbers, out: BeamSums,
+                window_m: np.ndarray | None = None):
+    """Every zone's sums into ``out`` on the beams whose window meets it (:func:`zone_beams`; a zone no window
+    meets is not transformed); returns the rows left to the time domain (bool per row)."""
     weights = np.ones(inp.n_channels) if inp.weights is None else np.asarray(inp.weights, dtype=np.float64)
     base = range_bases(inp, grid)
     time_rows = np.ones(grid.shape[1], dtype=bool)
     for z in range(zones.n_zones):
         rows = slice(int(zones.bounds[z]), int(zones.bounds[z + 1]))
+        beams = zone_beams(grid, rows, window_m)
+        if beams.size == 0:
+            time_rows[rows] = False               # outside every window: cleared, nothing to form
+            continue
         zone = _zone_segment(inp, base, rows, margin)
         seg = np.asarray(inp.data[:, zone.start:zone.end])
         if not np.all(np.isfinite(seg)):
             continue                              # skipped samples: these rows in the time domain
-        _zone_sums(inp, grid, zone, seg * scale, weights, zones.focus_m[z], steer, out, margin)
+        _zone_sums(inp, grid, zone, seg * scale, weights, zones.focus_m[z], steer, out, margin, beams)
         out.m[:, rows] = inp.n_channels           # every channel is inside the record on a zone's rows
         if out.signature is not None:
             out.signature[:, rows] = float(np.sum(channel_numbers))
@@ -389,21 +407,22 @@ def _zones_into(inp, grid, zones: ZonePlan, steer, scale: float, margin: int, ch
 
 
 def _zone_sums(inp, grid, zone: _Zone, seg: np.ndarray, weights: np.ndarray, focus_m: float, steer,
-               out: BeamSums, margin: int) -> None:
-    """One zone's ``S`` and ``Q`` into ``out``: the tapered segment's kept bins steered and evaluated at the rows;
-    ``Q`` from the squared envelopes of the same band-limited channels at twice the rate (the envelope's
-    band, twice the channels' width, would alias at their rate)."""
+               out: BeamSums, margin: int, beams: np.ndarray) -> None:
+    """One zone's ``S`` and ``Q`` on ``beams`` (indices) into ``out``: the tapered segment's kept bins steered
+    and evaluated at the rows; ``Q`` from the squared envelopes of the same band-limited channels at twice the
+    rate (the envelope's band, twice the channels' width, would alias at their rate)."""
     taper = hann_taper(seg.shape[1], margin)
     n_fft = zone.length
     spec = scipy.fft.fft(seg * taper, n_fft, axis=-1, workers=WORKERS)
-    delays = zone_delays_samples(inp, grid.angles_deg, focus_m) / n_fft     # cycles per bin (either rate)
+    delays = zone_delays_samples(inp, grid.angles_deg[beams], focus_m) / n_fft     # cycles per bin (either rate)
     k0, k1 = kept_bins(np.fft.fftshift(np.sum(weights[:, None] ** 2 * np.abs(spec) ** 2, axis=0)))
     if k1 <= k0:
         return
     first = k0 - n_fft // 2                       # bins from -L/2 on: negative frequencies kept where present
     bins = np.arange(first, first + k1 - k0)
     kept = np.take(spec, bins % n_fft, axis=1)
-    out.s[:, zone.rows] = evaluate_at(steer(weights[:, None] * kept, delays, first), first, n_fft, zone.positions)
+    out.s[beams, zone.rows] = evaluate_at(steer(weights[:, None] * kept, delays, first), first, n_fft,
+                                          zone.positions)
     up = np.zeros((seg.shape[0], 2 * n_fft), np.complex128)
     up[:, bins % (2 * n_fft)] = kept
     envelope = np.abs(2.0 * scipy.fft.ifft(up, axis=-1, workers=WORKERS)) ** 2
@@ -411,7 +430,7 @@ def _zone_sums(inp, grid, zone: _Zone, seg: np.ndarray, weights: np.ndarray, foc
     # |p|^2 of a signal on bins k0 .. k1 - 1 lies on bins -(k1 - k0 - 1) .. k1 - k0 - 1: all of them, exactly
     env_spec = env_spec[:, :k1 - k0]              # from DC on (a real signal's two-sided spectrum)
     env_spec[:, 0] *= 0.5                         # the DC bin once in 2 Re(...)
-    out.q[:, zone.rows] = 2.0 * evaluate_at(steer(env_spec, delays, 0), 0, 2 * n_fft, 2.0 * zone.positions).real
+    out.q[beams, zone.rows] = 2.0 * evaluate_at(steer(env_spec, delays, 0), 0, 2 * n_fft, 2.0 * zone.positions).real
 
 
 def _time_domain_rows(grid: PolarGrid, rows: np.ndarray, time_domain, out: BeamSums) -> None:
