@@ -7,6 +7,8 @@ point's refined peak within a range cell and 0.1 degree of where it is.
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 from scenes import profile_point_ping
@@ -99,9 +101,13 @@ def test_refracted_band_limit_of_isospeed_tables_is_the_arrays():
     np.testing.assert_allclose(got, 1.25 * base, rtol=1e-6)
 
 
-def test_a_profile_whose_rates_leave_no_saving_images_directly():
+def test_a_profile_whose_rates_leave_no_saving_images_directly(caplog, monkeypatch):
     """A strong shallow jump over a wide swath: the beams would be as many as the angles, so the engine
-    images every cell directly and the setting says so."""
+    images every cell directly and the setting says so; the log says why once, not at every ping."""
+    from clbeam.imaging.engine import common
+
+    monkeypatch.setattr(common, "_TOLD", set())
+    caplog.set_level(logging.INFO, logger="clbeam")
     profile = SoundSpeedProfile([0.0, 20.0, 20.0, 200.0], [1450.0, 1450.0, 1650.0, 1650.0])
     grid = PolarGrid.regular(range_res_m=1.0, angle_res_deg=1.0, max_range_m=120.0, angles_deg=(-60, 60))
     ping = profile_point_ping(np.array([[30.0, 80.0]]), profile, record_s=0.2)
@@ -109,6 +115,9 @@ def test_a_profile_whose_rates_leave_no_saving_images_directly():
     img = Imager(grid, ImagingOptions(beams=BeamSampling(1.5, 8), **options)).image(ping)
     direct = Imager(grid, ImagingOptions(beams=None, **options)).image(ping)
     assert "beams off" in img.setting and "beams off" not in direct.setting
+    Imager(grid, ImagingOptions(beams=BeamSampling(1.5, 8), **options)).image(ping)
+    told = [r for r in caplog.records if r.getMessage().startswith("beams off")]
+    assert len(told) == 1 and "cycles per radian" in told[0].getMessage()
     np.testing.assert_array_equal(img.intensity, direct.intensity)
     np.testing.assert_array_equal(img.cf, direct.cf)
 

@@ -22,6 +22,17 @@ from clbeam.imaging.engine.points import node_tables
 from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
+#: messages already logged by :func:`_info_once` (a ping's calibration checks the same plan on every point)
+_TOLD: set = set()
+
+
+def _info_once(message: str) -> None:
+    """Log ``message`` at INFO the first time this process sees it."""
+    if message in _TOLD:
+        return
+    if len(_TOLD) < 256:
+        _TOLD.add(message)
+    log.info("%s", message)
 
 #: outputs a caller may request
 OUTPUTS = ("intensity", "cf", "sums")
@@ -492,9 +503,9 @@ class Engine:
         refracted = refracted_band_limit(limit, probe, inp.top_frequency_hz)
         plan = beam_plan(grid, refracted, beams, range_window_m)
         if plan is None:
-            log.info("beams off: the travel times through the sound-speed profile turn the sums at %.0f cycles "
-                     "per radian across angles (%.0f for the array alone), more than beams save on %d angles: "
-                     "every cell imaged directly", refracted, limit, grid.shape[0])
+            _info_once(f"beams off: the travel times through the sound-speed profile turn the sums at "
+                       f"{refracted:.0f} cycles per radian across angles ({limit:.0f} for the array alone), more "
+                       f"than beams save on {grid.shape[0]} angles: every cell imaged directly")
         return plan
 
     def _beam_sampled(self, inp, grid, mode, outs, range_window_m, scale, plan) -> Sums:
