@@ -175,6 +175,8 @@ class Tests:
         The image grid's range step (m): the smoothed CF's cells.
     """
 
+    __test__ = False   # a detection test's settings, not a test class for pytest to collect
+
     threshold: float = 0.25
     min_snr_db: float | None = 6.0
     min_contrast_db: float | None = 12.0
