@@ -314,6 +314,8 @@ class Imager:
     def usable_channels(self, ping: Ping) -> np.ndarray:
         """Bool mask of the channels imaged: those not flagged invalid, entirely zero or entirely
         non-finite (the others logged), their non-finite samples counted in the log."""
+        require(ping.kind != "raw" or ping.pulse is not None, OptionError,
+                "raw samples need a pulse description to compress")
         x = ping.samples
         used = np.asarray(ping.channel_valid, dtype=bool).copy()
         finite = np.isfinite(x)
@@ -333,7 +335,6 @@ class Imager:
         transform for compression and upsampling, :func:`compress_analytic`), non-finite samples NaN."""
         x = ping.samples[used]
         if ping.kind == "raw":
-            require(ping.pulse is not None, OptionError, "raw samples need a pulse description to compress")
             data = compress_analytic(x, ping.pulse.replica(ping.sample_rate_hz),
                                      precision=compression_precision(x, self.engine.precision), upsample=upsample)
         else:
@@ -374,6 +375,10 @@ class Imager:
             min_channels=min_channels_of(self.options.min_channels, record.shape[0]),
             data_token=object())  # one token a ping: the engine uploads its channels once for every stage
         check_grid_reaches_record(inp, self.grid)   # before the setting, which is measured on the record's cells
+        picked = None                               # a seabed picked from the channels needs them at once
+        if self.options.sediment_speed_m_s is not None and self.options.seabed_depth_m is None and used.any():
+            picked = self.analytic_channels(ping, used)
+            inp = dataclasses.replace(inp, data=picked, data_token=object())
         profile = self._travel_profile(ping, inp, float(centre[2]))
         # the setting is measured on the array as mounted (no roll, no heave): one setting a line, whichever
         # ping comes first; each ping's beams still follow its own roll and heave (their band limit)
@@ -381,8 +386,11 @@ class Imager:
                                       source_offset_m=ping.source_pos_m - centre)
         setting = self.setting(ping.element_pos_m[used] - centre, band, ping, record.shape[1], geometry=mounted,
                                profile=(profile, float(centre[2])))
-        inp = dataclasses.replace(inp, data=self.analytic_channels(ping, used, setting.upsample),
-                                  sample_rate_hz=ping.sample_rate_hz * setting.upsample)
+        # compressed again at a higher rate rather than upsampled: the same channels as with the depth given
+        data = picked if picked is not None and setting.upsample == 1 else \
+            self.analytic_channels(ping, used, setting.upsample)
+        inp = dataclasses.replace(inp, data=data, sample_rate_hz=ping.sample_rate_hz * setting.upsample,
+                                  data_token=object())
         return self._with_tables(inp, profile, float(centre[2])), setting
 
     def setting_of(self, ping: Ping) -> Setting:
@@ -457,15 +465,14 @@ class Imager:
         """The cheapest of the settings predicted within the intensity budget whose errors measured on
         echoes of the ping's pulse through ``geometry`` hold the whole budget
         (:func:`clbeam.imaging.budget.choose_measured_setting`); with forced ``beams`` (a BeamSampling), the
-        cheapest time interpolation and upsampling with those beams (every one measured when the model
-        predicts none within the budget)."""
+        cheapest time interpolation and upsampling with those beams."""
         opts = self.options
         budget = Budget(max_error_db=opts.max_error_db, max_cf_error=opts.max_cf_error)
         candidates = [s for s in predicted if s.error_db <= opts.max_error_db]
         if isinstance(beams, BeamSampling):
             twin = dataclasses.replace(beams, domain="time")     # the model's bound for either domain
-            own = [dataclasses.replace(s, beams=beams) for s in predicted if s.beams == twin]
-            candidates = [s for s in own if s.error_db <= opts.max_error_db] or own
+            candidates = [dataclasses.replace(s, beams=beams) for s in predicted
+                          if s.beams == twin and s.error_db <= opts.max_error_db]
         replica = ping.pulse.replica(ping.sample_rate_hz) if ping.pulse is not None else None
         key = measurement_key(geometry, self.grid, band, replica, profile, budget, candidates, self.engine)
         setting, measured = remembered_choice(key, lambda: choose_measured_setting(

@@ -151,3 +151,19 @@ def test_absurdly_large_grid_is_refused_before_allocating():
     huge = PolarGrid(np.arange(0, 200_000, 0.01), np.linspace(-80, 80, 20_001))
     with pytest.raises(GridError, match="GiB per ping"):
         Imager(huge)
+
+
+def test_a_raw_ping_without_a_pulse_is_refused_before_its_setting_is_measured(monkeypatch):
+    """Raw samples cannot be compressed without the transmitted pulse: one line naming it, raised before
+    the auto setting is measured on the ping's geometry (a calibration made with no replica would be
+    remembered for the next ping of that geometry)."""
+    from clbeam.errors import OptionError
+    from clbeam.imaging import imager
+
+    ping = dataclasses.replace(point_ping(polar_point(100.0, 10.0), kind="raw"), pulse=None)
+    measured = []
+    monkeypatch.setattr(imager, "choose_measured_setting", lambda *a, **k: measured.append(a))
+    grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=1.0, max_range_m=150.0, angles_deg=(-30, 30))
+    with pytest.raises(OptionError) as info:
+        Imager(grid, ImagingOptions()).image(ping)
+    assert "pulse" in str(info.value) and "\n" not in str(info.value) and measured == []

@@ -140,6 +140,25 @@ def test_seabed_pick_with_the_profile_inverts_the_vertical_travel_time():
     assert pick_seabed_depth_m(inp) > 225.5
 
 
+def test_a_sediment_speed_without_a_seabed_depth_picks_the_seabed_from_the_ping():
+    """A sediment speed alone: the seabed is picked from the ping's own compressed channels, before the
+    setting is chosen, and the image equals the one made with that pick given as the seabed depth."""
+    prof = holland_line1_profile()
+    ping = profile_point_ping([[0.0, 224.0]], prof, record_s=0.4)
+    grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=1.0, min_range_m=210.0, max_range_m=260.0,
+                             angles_deg=(-10, 10))
+    opts = dict(interp="cubic", upsample=2, beams=None, refine_peaks=False)
+    inp = Imager(SMALL, ImagingOptions(interp="cubic", upsample=1, beams=None)).beamform_input(ping)
+    centre_z = float(SMALL.centre(tuple(ping.source_pos_m[1:]))[1])
+    depth = pick_seabed_depth_m(inp, profile=prof, centre_depth_m=centre_z)
+    assert depth == pytest.approx(224.0 - centre_z, abs=0.5)
+    picked = Imager(grid, ImagingOptions(sediment_speed_m_s=1600.0, **opts)).image(ping)
+    given = Imager(grid, ImagingOptions(sediment_speed_m_s=1600.0, seabed_depth_m=depth, **opts)).image(ping)
+    assert picked.intensity.max() > 0
+    np.testing.assert_array_equal(picked.intensity, given.intensity)
+    np.testing.assert_array_equal(picked.cf, given.cf)
+
+
 def test_ping_file_svp_is_read_validated_and_used_by_clbeam_image(seabed_target, tmp_path):
     ping, grid, truth = seabed_target
     prof = ping.svp

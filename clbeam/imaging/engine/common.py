@@ -28,7 +28,7 @@ _TOLD: set = set()
 
 def _info_once(message: str) -> None:
     """Log ``message`` at INFO the first time this process sees it."""
-    if message in _TOLD:
+    if message in _TOLD or not log.isEnabledFor(logging.INFO):
         return
     if len(_TOLD) < 256:
         _TOLD.add(message)
