@@ -43,9 +43,14 @@ RANGE_STEP_M, ANGLE_STEP_DEG = 0.2, 0.1
 
 
 def validation_scene(seabed: str, ranges_m, burials_m=(1.0, 2.0), *, pings: int = 10, snr_db: float | None = None,
-                     silent: bool = False):
+                     silent: bool = False, sides: str = "SP"):
     """Line 4's scene with broadside pipes at ``ranges_m`` (m): burial ``burials_m[0]`` to starboard,
     ``burials_m[1]`` to port, named ``S<range>`` and ``P<range>``.
+
+    The two pipes of a range lie at the same horizontal range, so their slant ranges differ by less than the
+    spread of either echo's arrival across the array (0.67 m against 1.29 m at 250 m): arriving from opposite
+    sides, the two echoes meet on a few channels, and there the other pipe's echo adds to the incoherent sum
+    of the coherence factor (docs/detectability.md, "Near ranges").  ``sides="S"`` or ``"P"`` keeps one side.
 
     Parameters
     ----------
@@ -62,10 +67,13 @@ def validation_scene(seabed: str, ranges_m, burials_m=(1.0, 2.0), *, pings: int 
     silent : bool
         Pipes of reflectivity 0: the same pings (seabed, noise, motion, the pipes' truth) without their
         echoes, on which a scoring window's false detections are counted.
+    sides : str
+        The sides that get pipes: ``"SP"`` (both), ``"S"`` (starboard) or ``"P"`` (port).
     """
     from clbeam.sim.catalog import scene_from_mapping
 
     require(seabed in SEABEDS, OptionError, f"seabed must be one of {', '.join(SEABEDS)}, got {seabed!r}")
+    require(sides in ("SP", "S", "P"), OptionError, f"sides must be 'SP', 'S' or 'P', got {sides!r}")
     spec = SEABEDS[seabed]
     d = tomllib.loads((importlib.resources.files("clbeam.sim.scenes") / "line4.toml").read_text())
     d["seabed"].update(spec["seabed"])
@@ -77,7 +85,8 @@ def validation_scene(seabed: str, ranges_m, burials_m=(1.0, 2.0), *, pings: int 
     d["target"] = [{"kind": "line", "name": f"{side}{int(round(r))}", "y_m": sign * float(r), "angle_deg": 0.0,
                     "curvature_deg_per_km": 0.0, "radius_m": 0.11, "burial_m": float(b),
                     "reflectivity": 0.0 if silent else 0.8}
-                   for side, sign, b in (("S", 1.0, burials_m[0]), ("P", -1.0, burials_m[1])) for r in ranges_m]
+                   for side, sign, b in (("S", 1.0, burials_m[0]), ("P", -1.0, burials_m[1])) if side in sides
+                   for r in ranges_m]
     return scene_from_mapping(d, name=f"{seabed}-validation")
 
 
