@@ -11,11 +11,13 @@ none) is evaluated at the same ranges.  The tuning draws (``--tune-seed``) are t
 model or the scoring was looked at on; the validation draws (``--seeds``) report.
 
     python bench/detectability_eval.py [--pings 24] [--seeds 2 3] [--tune-seed 1] [--tune-pings 12]
-        [--silent-pings 8] [--offsets 64] [--beside 8] [--cache DIR]
+        [--silent-pings 8] [--offsets 64] [--beside 8] [--one-side] [--cache DIR]
         [--out docs/detectability_validation.png] [--csv detectability_validation.csv]
 
 ``--cache DIR`` keeps each survey's peaks (a pickle per seabed, seed, pings and silence) so that a rerun
 scores them again without simulating; about 20 s a ping on two shared cores, 10 s silent.
+``--one-side`` surveys each side's pipes alone, twice the pings: the two pipes of a range lie at one
+horizontal range, and their echoes cross on a few channels (docs/detectability.md, "Near ranges").
 """
 
 from __future__ import annotations
@@ -45,18 +47,20 @@ def predicted(seabed: str, offsets: int | None = None, beside: int | None = None
             for r, res in zip(RANGES, detections(env, Pipe(burial_m=b), RANGES, draws=4096, **kw))}
 
 
-def survey_peaks(seabed: str, seed: int, pings: int, *, silent: bool = False, cache: str | None = None) -> dict:
-    """:func:`~clbeam.evaluation.detectability_validation.ping_peaks` of one survey, from ``cache`` where
-    it holds them."""
+def survey_peaks(seabed: str, seed: int, pings: int, *, silent: bool = False, cache: str | None = None,
+                 sides: str = "SP") -> dict:
+    """:func:`~clbeam.evaluation.detectability_validation.ping_peaks` of one survey (the pipes of ``sides``),
+    from ``cache`` where it holds them."""
     from clbeam.evaluation.detectability_validation import ping_peaks, validation_scene
 
-    path = None if cache is None else os.path.join(cache, f"peaks_{seabed}_{seed}_{pings}{'_silent' * silent}.pkl")
+    tag = "" if sides == "SP" else f"_{sides}"
+    path = None if cache is None else os.path.join(cache, f"peaks_{seabed}_{seed}_{pings}{'_silent' * silent}{tag}.pkl")
     if path is not None and os.path.exists(path):
         with open(path, "rb") as fh:
             return pickle.load(fh)
     t0 = time.perf_counter()
-    peaks = ping_peaks(validation_scene(seabed, RANGES, BURIALS, pings=pings, silent=silent), seed=seed)
-    print(f"  {seabed} seed {seed}{' silent' * silent}: {pings} pings in {time.perf_counter() - t0:.0f} s", flush=True)
+    peaks = ping_peaks(validation_scene(seabed, RANGES, BURIALS, pings=pings, silent=silent, sides=sides), seed=seed)
+    print(f"  {seabed} seed {seed}{' silent' * silent} {sides}: {pings} pings in {time.perf_counter() - t0:.0f} s", flush=True)
     if path is not None:
         os.makedirs(cache, exist_ok=True)
         with open(path, "wb") as fh:
@@ -64,14 +68,18 @@ def survey_peaks(seabed: str, seed: int, pings: int, *, silent: bool = False, ca
     return peaks
 
 
-def measured(seabed: str, seeds, pings: int, *, silent: bool = False, cache: str | None = None) -> dict:
-    """``{(burial, range): {"arc": (hits, pings), "placed": (hits, pings)}}`` over the seeds."""
+def measured(seabed: str, seeds, pings: int, *, silent: bool = False, cache: str | None = None,
+             one_side: bool = False) -> dict:
+    """``{(burial, range): {"arc": (hits, pings), "placed": (hits, pings)}}`` over the seeds; ``one_side``:
+    each side's pipes surveyed alone (no echo of the other side's pipe crossing theirs)."""
     from clbeam.evaluation.detectability_validation import arc_window, score, validation_scene
 
     window = arc_window(validation_scene(seabed, RANGES, BURIALS))
     out: dict = {}
-    for seed in seeds:
-        for name, counts in score(survey_peaks(seabed, seed, pings, silent=silent, cache=cache), window).items():
+    surveys = [(seed, sides) for seed in seeds for sides in (("S", "P") if one_side else ("SP",))]
+    for seed, sides in surveys:
+        peaks = survey_peaks(seabed, seed, pings, silent=silent, cache=cache, sides=sides)
+        for name, counts in score(peaks, window).items():
             key = (BURIALS[0] if name[0] == "S" else BURIALS[1], float(name[1:]))
             prev = out.setdefault(key, {"arc": (0, 0), "placed": (0, 0)})
             out[key] = {k: (prev[k][0] + counts[k][0], prev[k][1] + counts[k][1]) for k in counts}
@@ -155,6 +163,8 @@ def _arguments(argv):
     ap.add_argument("--beside", type=int, default=None,
                     help="the model's beams searched each side of the echo's (default its own; 0: the echo's beam only)")
     ap.add_argument("--cache", default=None, help="folder keeping each survey's peaks")
+    ap.add_argument("--one-side", action="store_true",
+                    help="survey each side's pipes alone (the two sides' echoes cross at one horizontal range)")
     ap.add_argument("--out", default="docs/detectability_validation.png", help="figure")
     ap.add_argument("--csv", default=None, help="table of every row (CSV)")
     args = ap.parse_args(argv)
@@ -173,10 +183,12 @@ def main(argv=None) -> None:
     for offsets in args.offsets or [None]:
         pred = {(s, *k): v for s in ("mud", "sand") for k, v in predicted(s, offsets, args.beside).items()}
         for label, seeds, pings in sets:
-            meas = {(s, *k): v for s in ("mud", "sand") for k, v in measured(s, seeds, pings, cache=args.cache).items()}
+            meas = {(s, *k): v for s in ("mud", "sand") for k, v in measured(s, seeds, pings, cache=args.cache,
+                                                                        one_side=args.one_side).items()}
             silent = {} if not args.silent_pings else {
                 (s, *k): v for s in ("mud", "sand")
-                for k, v in measured(s, seeds, args.silent_pings, silent=True, cache=args.cache).items()}
+                for k, v in measured(s, seeds, args.silent_pings, silent=True, cache=args.cache,
+                                    one_side=args.one_side).items()}
             rows += report(f"{label}, model offsets {offsets or 'default'}", pred, meas, silent)
     figure(args.out, pred, meas)
     if args.csv:
