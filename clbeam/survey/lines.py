@@ -30,10 +30,7 @@ to the world ping by ping.
    score is kept, and one that shared its detections grows again without
    them; then the seeds skipped at first grow if still at most half used
    and not mostly held by the tracks or the seeds grown before them.
-   Detections are used once.  A track that starts within ``JOIN_GAP_PINGS``
-   pings after another ends, on its line and at its burial, continues it
-   (:func:`join_collinear`: a pipeline's gap, or a smooth pipe's burials
-   wandering beyond the gate).  (Kept seed by seed in the seeds' order,
+   Detections are used once.  (Kept seed by seed in the seeds' order,
    a seed that strayed off a crossing pipeline in dense clutter took the
    detections of the seed that followed it: the boulder field's pipeline.)
 3. **Scores** (:mod:`clbeam.survey.line_score`): how unlikely the line is as
@@ -43,7 +40,6 @@ to the world ping by ping.
 
 from __future__ import annotations
 
-import bisect
 import heapq
 import math
 from dataclasses import dataclass, field
@@ -61,9 +57,6 @@ SKIP_CLAIMED = 0.7
 #: a line whose members' RMS distance from its path is at least this share of the smear's half-width
 #: (``r beam |tan a| / 2``) is smeared (a rough crossing pipe: about 0.25-0.6; a tight line at a heading: 0.02)
 SMEARED_SPREAD = 0.15
-#: imaged pings without a detection across which one track may continue another (:func:`join_collinear`): a
-#: pipeline's gap of about 100 m at 8.2 m a ping
-JOIN_GAP_PINGS = 12
 
 
 @dataclass
@@ -182,63 +175,8 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
     # the tracks or the seeds grown before it in this round hold most of it (as in the first round)
     heap, _ = _candidates(frame, skipped, used, options, rank)
     tracks += _choose(frame, heap, used, options, rank)
-    tracks = join_collinear(frame, tracks, options)
     tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
     return tracks
-
-
-def join_collinear(frame: TrackFrame, tracks: list, options: LineOptions) -> list[Track]:
-    """Tracks that continue one another joined into one: the second starts after the first ends, within
-    :data:`JOIN_GAP_PINGS` imaged pings, each one's end fit (:func:`_local_fit` over its ``fit_hits`` hits
-    nearest the gap) predicts the other's nearest hit within twice the gate across (:func:`across_gate`), and
-    their burials there agree within the burial gate, or twice their combined scatter (:func:`_end_burial`).
-    A pipeline's detections break where it spans free or lies in a shadow, and a smooth pipe at a heading
-    images deeper as its nearest point moves off the ping's plane: its track stops at the break or where its
-    burials wander beyond the gate, and its far part grows from its own seed.  Of several tracks that continue
-    one, the nearest in ping joins first."""
-    tracks = sorted(tracks, key=lambda t: t.first)
-    firsts = [t.first for t in tracks]
-    i = 0
-    while i < len(tracks):
-        a = tracks[i]
-        lo, hi = bisect.bisect_right(firsts, a.last), bisect.bisect_right(firsts, a.last + JOIN_GAP_PINGS + 1)
-        after = [j for j in range(lo, hi) if _continues(frame, a, tracks[j], options)]
-        if not after:
-            i += 1
-            continue
-        b = tracks.pop(after[0])  # the nearest in ping (the tracks are in order of their first ping)
-        firsts.pop(after[0])
-        tracks[i] = Track(members=np.concatenate([a.members, b.members]), first=a.first, last=b.last)
-    return tracks
-
-
-def _continues(frame: TrackFrame, a: Track, b: Track, options: LineOptions) -> bool:
-    """Whether track ``b`` (starting after ``a`` ends) continues ``a``: :func:`join_collinear`."""
-    n = max(3, int(options.fit_hits))
-    end_a, start_b = a.members[::-1][:n], b.members[:n]
-    icpt_a, slope_a, b_a = _local_fit(frame, end_a, options)
-    icpt_b, slope_b, b_b = _local_fit(frame, start_b, options)
-    last, first = int(end_a[0]), int(start_b[0])
-    miss_b = abs(frame.y[first] - (icpt_a + slope_a * frame.s[first]))
-    miss_a = abs(frame.y[last] - (icpt_b + slope_b * frame.s[last]))
-    if miss_b > 2 * float(across_gate(frame, np.array([first]), slope_a, options)[0]) or \
-            miss_a > 2 * float(across_gate(frame, np.array([last]), slope_b, options)[0]):
-        return False
-    if not (math.isfinite(b_a) and math.isfinite(b_b)):
-        return True
-    return abs(b_a - b_b) <= max(options.burial_gate_m,
-                                 2 * math.hypot(_end_burial(frame, end_a), _end_burial(frame, start_b)))
-
-
-def _end_burial(frame: TrackFrame, hits: np.ndarray) -> float:
-    """The scatter (m) of a track's burials at one end: the larger of their robust standard deviation
-    (1.4826 times the median absolute deviation) and their median standard deviation."""
-    b, sigma = frame.b[hits], frame.b_sigma[hits]
-    ok = np.isfinite(b) & np.isfinite(sigma)
-    if not ok.any():
-        return 0.0
-    b, sigma = b[ok], sigma[ok]
-    return max(1.4826 * float(np.median(np.abs(b - np.median(b)))), float(np.median(sigma)))
 
 
 def _candidates(frame: TrackFrame, seeds, used: np.ndarray, options: LineOptions, rank) -> tuple[list, list]:
