@@ -57,6 +57,15 @@ SKIP_CLAIMED = 0.7
 #: a line whose members' RMS distance from its path is at least this share of the smear's half-width
 #: (``r beam |tan a| / 2``) is smeared (a rough crossing pipe: about 0.25-0.6; a tight line at a heading: 0.02)
 SMEARED_SPREAD = 0.15
+#: a smeared line whose mean smear half-width is at least this (m) is a wide smear: a few detections a ping
+#: scattered uniformly over it, whose centre a fit of ``fit_length_m`` averages too few of (Cross's X: 1.8 m RMS)
+WIDE_SMEAR_M = 4.0
+#: a wide smear's path is fitted over this many times ``fit_length_m`` (a pipe is straight over a few hundred
+#: metres; at 2 the fit drifted 5 m along a tuning pipe, at 3-5 Cross's X came within 0.7-1.0 m)
+WIDE_SMEAR_LENGTH = 3.0
+#: passes of the gated fit: 2, or for a wide smear 6 (its gate is about the smear, so each pass moves the
+#: window only part of the way to the detections' centre; 12 gave the same paths)
+PATH_PASSES, WIDE_SMEAR_PASSES = 2, 6
 
 
 @dataclass
@@ -488,8 +497,10 @@ def smooth_path(frame: TrackFrame, track: Track, half_width_m: float) -> np.ndar
 
 
 def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarray:
-    """The line's offset at each ping of its extent (m): :func:`smooth_path` of its members, then twice a local
-    straight-line fit of every detection inside its gates about that path, weighted by CF.  Across, the gate
+    """The line's offset at each ping of its extent (m): :func:`smooth_path` of its members, then
+    :data:`PATH_PASSES` times a local straight-line fit of every detection inside its gates about that path,
+    weighted by CF (a wide smear, :data:`WIDE_SMEAR_M`: :data:`WIDE_SMEAR_PASSES` fits over
+    :data:`WIDE_SMEAR_LENGTH` times ``fit_length_m``).  Across, the gate
     is :func:`across_gate` at the path's slope, narrowed to 2.5 times the members' RMS distance from the path
     (at least ``across_gate_m``) unless they spread over ``SMEARED_SPREAD`` of the smear: a tight line at a
     heading takes in no clutter or neighbour the smear's width away; in burial, :func:`burial_ok` about the
@@ -511,14 +522,17 @@ def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarr
     smear = float(np.mean(smear_half_width(frame, m, np.gradient(path, s_ext)[km], options)))
     # members spread over a good part of the smear: the line is smeared, its gate holds the smear; else a tight
     # line at a heading, whose gate is its members' spread (a neighbour or clutter the smear's width away stays out)
-    widest = np.inf if spread >= SMEARED_SPREAD * smear else max(options.across_gate_m, 2.5 * spread)
-    for _ in range(2):
+    smeared = spread >= SMEARED_SPREAD * smear
+    widest = np.inf if smeared else max(options.across_gate_m, 2.5 * spread)
+    wide = smeared and smear >= WIDE_SMEAR_M
+    fit_half = half * WIDE_SMEAR_LENGTH if wide else half
+    for _ in range(WIDE_SMEAR_PASSES if wide else PATH_PASSES):
         slope = np.gradient(path, s_ext)
         gate = np.minimum(across_gate(frame, idx, slope[k], options), widest)
         inside = idx[near_burial & (np.abs(frame.y[idx] - path[k]) <= gate)]
         if inside.size < 3:
             break
-        path = local_linear(frame.s[inside], frame.y[inside], s_ext, half, weights=frame.cf[inside])
+        path = local_linear(frame.s[inside], frame.y[inside], s_ext, fit_half, weights=frame.cf[inside])
     return path
 
 

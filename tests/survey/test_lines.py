@@ -446,6 +446,44 @@ def test_a_smeared_line_path_is_the_centre_of_all_its_detections_not_of_the_one_
     assert np.mean(line_errors) < 0.6 * np.mean(member_errors)
 
 
+def test_a_wide_smear_with_few_detections_a_ping_is_centred_over_a_longer_fit(monkeypatch):
+    """2-3 detections a ping over a 6-13 m smear (pipes at 25 and 40 degrees): the fit over
+    ``WIDE_SMEAR_LENGTH`` times the fit length averages that many more of them.  Its path is within 0.45 of
+    the smear's half-width (RMS) of the crossings on every frame (0.37 at most over 80 frames; the plain fit,
+    ``WIDE_SMEAR_M`` out of reach, 0.62), and on average within 0.85 of the plain fit's error on the same
+    frames (0.54-0.71 in blocks of 12); the least-squares floor of a straight line through 2.5 detections a
+    ping, ``sqrt(2 / N)`` of their ``h / sqrt(3)`` scatter, is 0.07 of it."""
+    import clbeam.survey.lines as lines
+    errors = {}
+    for fit, wide_m in (("wide", lines.WIDE_SMEAR_M), ("plain", math.inf)):
+        monkeypatch.setattr(lines, "WIDE_SMEAR_M", wide_m)
+        errors[fit] = []
+        for seed in range(20, 26):
+            for heading in (25.0, 40.0):
+                frame, truth, half = smeared_crossing_frame(seed, per_ping=(2, 4), heading_deg=heading)
+                t = [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30][0]
+                ext = slice(t.first, t.last + 1)
+                error = np.sqrt(np.mean((line_path(frame, t, LineOptions()) - truth[ext]) ** 2)) / half[ext].mean()
+                errors[fit].append(error)
+    wide, plain = np.array(errors["wide"]), np.array(errors["plain"])
+    assert (wide < 0.45).all(), wide
+    assert wide.mean() < 0.85 * plain.mean(), (wide.mean(), plain.mean())
+
+
+def test_a_tight_line_at_a_heading_keeps_the_plain_fit(monkeypatch):
+    """A tight line (0.3 m scatter) at 35 degrees is not smeared: its path is the same with the wide-smear fit
+    out of reach, and within 0.3 m (RMS) of the line."""
+    import clbeam.survey.lines as lines
+    ln = {"y0": -150.0, "heading": 35.0, "p": 0.9}
+    frame, _ = synthetic_frame(60, [ln], 0.05, seed=5)
+    t = [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30][0]
+    path = line_path(frame, t, LineOptions())
+    monkeypatch.setattr(lines, "WIDE_SMEAR_M", math.inf)
+    assert np.array_equal(path, line_path(frame, t, LineOptions()))
+    truth = line_y(frame.ping_s[t.first:t.last + 1], ln["y0"], 35.0, 0.0)
+    assert np.sqrt(np.mean((path - truth) ** 2)) < 0.3
+
+
 @pytest.mark.parametrize("preferred", [0, 1])
 def test_the_better_ranked_of_two_branches_takes_the_stem_they_share(preferred):
     """Line 1 branches off line 0 at 3 degrees halfway (a Y: before ping 30
