@@ -3,11 +3,11 @@
 **The seabed of a ping** is picked from its own coherence peaks: most of
 them are seabed scatterers, whatever lies below (a horizon's, a pipeline's)
 is deeper, and nothing lies above it but noise.  :func:`seabed_line` fits
-``z = z0 + slope y`` to them: candidate lines through pairs of peaks
-(RANSAC, Fischler & Bolles 1981), scored by the peaks within
-``tolerance_m``; of those holding at least half the best count the
-shallowest wins (a strong horizon may hold as many peaks as the seabed, it
-never lies above it); a Tukey-weighted least-squares fit refines it.  The
+``z = z0 + slope y`` to the upper edge of them: the two shallowest peaks of
+each bin across, candidate lines through pairs of those (RANSAC, Fischler &
+Bolles 1981) scored by how many of them lie within ``tolerance_m`` (a
+horizon may hold twice the seabed's peaks, it never lies above it); a
+Tukey-weighted least-squares fit of all peaks refines the best.  The
 peaks are first raised by the depth their echoes from off the ping's plane
 add (:func:`offplane_deepening_m`).  The seabed is taken as a plane across
 the swath: over a seabed that bends across the swath (a channel, a ridge),
@@ -53,6 +53,11 @@ MIN_SCATTER_N = 5
 #: the standard error of the seabed's depth at a line, added to its burial's (m): the fitted seabed's mean error at
 #: the simulated pipes, over each line, came to 0.05-0.18 m RMS over noise seeds (0.18 m at 920 m)
 SEABED_SE_M = 0.15
+#: width across of the bins whose two shallowest peaks stand for a ping's seabed (m, :func:`seabed_line`): on the
+#: tuning surveys the fitted seabed's RMS error 500 m out was 0.3-1.1 m at 30-75 m, worst 1.3 m at 30 and 100 m
+#: (fewer seabed peaks than bins, or too few bins); taking the shallowest of all candidates holding half the best
+#: count, the earlier rule, 0.3-4.7 m (a horizon 7 m down, 7 dB brighter than the seabed)
+SEABED_BIN_M = 50.0
 #: the floor on coarse grids, in grid angle steps (0.19 measured at 0.5 degree)
 SLIDE_PER_STEP = 0.3
 #: SNR below which the slide stops growing (dB): a peak that weak lies anywhere in the beam's main lobe
@@ -185,9 +190,15 @@ def smear_deepening_m(range_m, angle_rad, beam_width_rad: float) -> np.ndarray:
     return _mean_deepening_m(range_m, angle_rad, SMEAR_MEAN_SQUARE * beam_width_rad ** 2)
 
 
-def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, n_trials: int = 200,
-                seed: int = 0) -> tuple[float, float] | None:
+def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27,
+                bin_width_m: float = SEABED_BIN_M) -> tuple[float, float] | None:
     """The seabed of one ping from its peaks: ``(z0, slope)`` of ``z = z0 + slope y`` (m, 1), or ``None``.
+
+    The seabed is the upper edge of the peaks: in each ``bin_width_m`` across, the two shallowest peaks stand
+    for it (a stray peak above the seabed takes one of them).  Of the lines through pairs of those, the one
+    holding most of them within ``tolerance_m`` wins (of equal counts, the shallowest at the middle of the
+    swath); a Tukey-weighted least-squares fit of all peaks refines it.  A horizon below that holds more peaks
+    than the seabed never wins, nor a line tilted across from the seabed on one side to the horizon on the other.
 
     Parameters
     ----------
@@ -197,13 +208,13 @@ def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, 
         Distance in depth that makes a peak an inlier (m).
     max_slope : float
         Largest slope tried (0.27: 15 degrees).
-    n_trials : int
-        Candidate pairs (drawn with a fixed ``seed``: the same peaks give the same seabed).
+    bin_width_m : float
+        Width across of the bins whose shallowest peaks stand for the seabed (m).
 
     Returns
     -------
     (float, float) or None
-        ``None`` with fewer than 5 peaks or no candidate holding 5.
+        ``None`` with fewer than 5 peaks or no line through 3 of the shallowest.
     """
     y = np.asarray(y_m, dtype=np.float64)
     z = np.asarray(z_m, dtype=np.float64)
@@ -211,25 +222,25 @@ def seabed_line(y_m, z_m, *, tolerance_m: float = 1.0, max_slope: float = 0.27, 
     y, z = y[ok], z[ok]
     if y.size < 5:
         return None
-    rng = np.random.default_rng(seed)
-    i, j = rng.integers(0, y.size, size=(2, n_trials))
-    dy = y[j] - y[i]
+    order = np.lexsort((z, np.floor(y / bin_width_m)))
+    cell = np.floor(y[order] / bin_width_m)
+    rank = np.arange(order.size) - np.searchsorted(cell, cell)  # depth order of each peak within its bin
+    top = order[rank < 2]
+    ey, ez = y[top], z[top]
+    i, j = np.triu_indices(ey.size, 1)
+    dy = ey[j] - ey[i]
     good = np.abs(dy) > 1.0
-    slope = np.where(good, (z[j] - z[i]) / np.where(good, dy, 1.0), 0.0)
+    slope = np.where(good, (ez[j] - ez[i]) / np.where(good, dy, 1.0), 0.0)
     good &= np.abs(slope) <= max_slope
     if not good.any():
-        slope, z0 = np.zeros(1), np.array([np.median(z)])
-    else:
-        slope = slope[good]
-        z0 = z[i[good]] - slope * y[i[good]]
-    resid = z[None, :] - (z0[:, None] + slope[:, None] * y[None, :])
-    count = (np.abs(resid) <= tolerance_m).sum(axis=1)
-    if count.max() < 5:
         return None
-    strong = count >= 0.5 * count.max()
-    # the shallowest of the well-supported lines, at the middle of the swath
-    mid = float(np.median(y))
-    k = np.flatnonzero(strong)[np.argmin((z0 + slope * mid)[strong])]
+    slope = slope[good]
+    z0 = ez[i[good]] - slope * ey[i[good]]
+    count = (np.abs(ez[None, :] - (z0[:, None] + slope[:, None] * ey[None, :])) <= tolerance_m).sum(axis=1)
+    if count.max() < 3:
+        return None
+    best = np.flatnonzero(count == count.max())
+    k = best[np.argmin(z0[best] + slope[best] * float(np.median(y)))]
     return _refine(y, z, float(z0[k]), float(slope[k]), tolerance_m)
 
 
