@@ -274,9 +274,10 @@ def test_a_chain_on_the_seabed_at_a_steady_heading_is_an_exposed_pipeline_at_its
 
 def test_the_halfway_burial_needs_a_smooth_pipes_nearest_point_inside_the_beam():
     """The gate on the angle off the plane at which a smooth pipe's nearest point would lie: inside half the
-    beam width (4.5 degrees: 0.039 rad) the burial moves by dz / 2 with dz / sqrt(12) more error, beyond it
-    and without extra depth it does not."""
-    from clbeam.survey.line_products import diffuse_shift
+    beam width (4.5 degrees: 0.039 rad) the burial moves by dz / 2 with dz / sqrt(12) more error; beyond it,
+    out to SMOOTH_SEEN_BEAMS beam widths, it stays and dz / 2 is added to its error (a smooth pipe there is
+    still seen, dz deeper); beyond that, shown rough by its burials, or without extra depth, nothing."""
+    from clbeam.survey.line_products import SMOOTH_SEEN_BEAMS, diffuse_shift
 
     def undecided(fit, options):
         return diffuse_shift(fit, np.zeros(0), False, options)
@@ -284,11 +285,18 @@ def test_the_halfway_burial_needs_a_smooth_pipes_nearest_point_inside_the_beam()
     inside = undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, LineOptions())
     assert inside["burial_shift_m"] == pytest.approx(-0.4) and inside["burial_extra_error_m"] == pytest.approx(
         0.8 / np.sqrt(12))
-    assert undecided({"extra_depth_m": 0.8, "offplane_rad": 1.05 * half}, LineOptions()) is None
+    edge = undecided({"extra_depth_m": 0.8, "offplane_rad": 1.05 * half}, LineOptions())
+    assert edge["burial_shift_m"] == 0.0 and edge["burial_extra_error_m"] == pytest.approx(0.4)
+    sidelobe = undecided({"extra_depth_m": 2.8, "offplane_rad": 2.83 * half}, LineOptions())  # heading245's S1
+    assert sidelobe["burial_extra_error_m"] == pytest.approx(1.4)
+    beyond = 2 * SMOOTH_SEEN_BEAMS * half
+    assert undecided({"extra_depth_m": 0.8, "offplane_rad": 1.01 * beyond}, LineOptions()) is None
+    assert diffuse_shift({"extra_depth_m": 0.8, "offplane_rad": 1.05 * half}, np.zeros(0), True, LineOptions()) is None
     assert undecided({"extra_depth_m": 0.0, "offplane_rad": 0.0}, LineOptions()) is None
     assert undecided({"extra_depth_m": np.nan, "offplane_rad": np.nan}, LineOptions()) is None
     narrow = LineOptions(beam_width_deg=2.0)
-    assert undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, narrow) is None
+    narrower = undecided({"extra_depth_m": 0.8, "offplane_rad": 0.95 * half}, narrow)  # 2.1 of its half-widths
+    assert narrower["burial_shift_m"] == 0.0 and narrower["burial_extra_error_m"] == pytest.approx(0.4)
 
 
 @pytest.mark.parametrize("louder_deeper", [False, True])
