@@ -96,7 +96,8 @@ def family_specs(choice: str) -> list:
 
 def split_summary(split: str, scored: list, clutter_km: float, clutter_false: int) -> list:
     """Lines of text: a split's pipelines up to :data:`NADIR_LIMIT_DEG` against the targets, those whose
-    detectable pings are no more than chance gives (``seen``, :mod:`clbeam.evaluation.line_truth`) named, and
+    detectable pings are no more than chance gives (``seen``, :mod:`clbeam.evaluation.line_truth`) named and
+    the targets over the others, and
     its false pipeline lines per km over its clutter-only surveys; ``scored``: every target row of the split."""
     rows = [r for r in scored if not r["nadir_deg"] > NADIR_LIMIT_DEG and r["detectable_pings"] > 0]
     unseen = [f"{r.get('scene', '')} {r['target']} ({r['detectable_pings']} pings, {r['chance_pings']:.0f} at the copies)"
@@ -119,6 +120,11 @@ def split_summary(split: str, scored: list, clutter_km: float, clutter_false: in
         out.append(f"{split}: of these, {len(unseen)} with no more pings with a detection near them than their "
                    f"copies {' and '.join(f'{d:g}' for d in sorted({abs(v) for v in CHANCE_OFFSETS_M}))} m beyond its "
                    "crossing and its image (their detectable pings are mostly the clutter's): " + ", ".join(unseen))
+        seen = np.array([bool(r["seen"]) for r in rows])
+        out.append(f"{split}: of the {seen.sum()} seen above chance: one line {on[seen].sum()}, position RMS <= "
+                   f"{POSITION_TARGET_M} m {np.sum(pos[seen] <= POSITION_TARGET_M)}, burial within {BURIAL_TARGET_M} m "
+                   f"{np.sum(np.abs(bur[seen]) <= BURIAL_TARGET_M)}, within two reported standard errors "
+                   f"{covered[seen].sum()}")
     if clutter_km > 0:
         out.append(f"{split}: {clutter_false} false pipeline line(s) over {clutter_km:.2f} km of clutter-only survey "
                    f"({clutter_false / clutter_km:.2f} per km)")
