@@ -199,8 +199,9 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
 #: same pipe seen through the transmit pattern's first sidelobe, imaged beside it and deeper
 SHADOW_BEAMS = 2.0
 #: and it is that shadow only when its echoes are at least this much weaker (dB; the first sidelobe of a uniform
-#: column lies 13.3 dB down)
-SHADOW_DB = 10.0
+#: column lies 13.3 dB down, the main lobe's edge less: at 10 two tracks 6.4-6.6 dB down, 1.3-3.4 m deeper and
+#: 8-11 m beside crossing pipes of the discrete tuning draws family:1 and family:6 were false pipeline lines)
+SHADOW_DB = 6.0
 #: a smooth pipe whose nearest point lies up to this many beam widths off the ping's plane (the pattern's second
 #: null) is still seen, through the main lobe's edge or the first sidelobe, its echo ``dz`` deeper than the pipe:
 #: a line at such a heading that its burials do not show to be rough has ``dz / 2`` added to its burial's error
