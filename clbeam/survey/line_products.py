@@ -449,8 +449,8 @@ def diffuse_shift(fit: dict, smear_m: np.ndarray, not_specular: bool, options: L
                 "always": False}
     smear = np.asarray(smear_m, dtype=np.float64)
     smear = smear[np.isfinite(smear)]
-    shift = float(smear.mean()) if off >= half and smear.size and float(smear.mean()) > 0 else 0.0
-    # were it smooth, its nearest point inside the main lobe (within the first null): seen, weaker, dz deeper
+    shift = max(float(smear.mean()), 0.0) if off >= half and smear.size else 0.0
+    # were it smooth, its nearest point within SMOOTH_SEEN_BEAMS beam widths: still seen, weaker, dz deeper
     ambiguous = not not_specular and dz > 0 and half <= off < 2 * SMOOTH_SEEN_BEAMS * half
     if shift > 0 or ambiguous:
         return {"path_y": None, "burial_shift_m": -shift, "burial_extra_error_m": 0.5 * dz if ambiguous else 0.0,

@@ -160,7 +160,7 @@ def test_clutter_alone_gives_fewer_chance_lines_than_the_score_promises():
     assert sum(s >= LineOptions().min_score for s in scores) <= 0.1 * km + 1
 
 
-def test_seabed_line_is_the_shallowest_well_supported_plane_not_the_strongest_horizon():
+def test_seabed_line_is_the_seabed_plane_not_the_stronger_horizon_below_it():
     """Peaks on a sloping seabed, on a horizon 20 m below it holding 1.5 times
     as many, and noise: the fit is the seabed's (depth within 5 cm, slope within 1e-4)."""
     rng = np.random.default_rng(4)
