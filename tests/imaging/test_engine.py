@@ -277,3 +277,55 @@ def test_a_profiling_engine_times_its_copies():
     wall = time.perf_counter() - t0
     assert engine.readback.n_bytes == 2 * grid.n_cells * 4
     assert 0 < engine.readback.device_s < wall and engine.readback.throughput_gb_s() > 0
+
+
+@pytest.mark.parametrize("axis", [PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=1100.0).ranges_m,
+                                  PolarGrid.regular(range_res_m=0.2, angle_res_deg=0.1, max_range_m=1100.0).angles_deg,
+                                  np.array([0.0, 0.5, 2.0, 2.1, 7.0])], ids=["ranges", "angles", "uneven"])
+def test_the_lower_node_of_points_is_the_binary_searchs(axis):
+    """The bilinear tables' corner: ``searchsorted(axis, x) - 1`` clipped to the intervals, and its fraction,
+    at random points, on every node, halfway between nodes and beyond both ends."""
+    from clbeam.imaging.engine.points import _lower_node
+
+    rng = np.random.default_rng(5)
+    span = axis[-1] - axis[0]
+    x = np.concatenate([rng.uniform(axis[0] - 0.1 * span, axis[-1] + 0.1 * span, 20000), axis,
+                        0.5 * (axis[1:] + axis[:-1]), np.nextafter(axis, -np.inf), np.nextafter(axis, np.inf)])
+    i, t = _lower_node(axis, x)
+    want = np.clip(np.searchsorted(axis, x) - 1, 0, axis.size - 2)
+    np.testing.assert_array_equal(i, want)
+    np.testing.assert_array_equal(t, (x - axis[want]) / (axis[want + 1] - axis[want]))
+
+
+def test_kept_table_windows_follow_the_record_and_let_their_tables_go():
+    """The windows of a grid's tables are kept for the next ping: a record of another start or length gets
+    its own (those a fresh computation gives), and the kept ones do not hold the tables alive."""
+    import gc
+    import weakref
+
+    from clbeam.imaging.engine import common, interp_mode
+    from clbeam.imaging.raytrace import travel_time_tables
+    from clbeam.model.svp import holland_line1_profile
+
+    grid = PolarGrid.regular(range_res_m=0.5, angle_res_deg=2, max_range_m=70.0, angles_deg=(-80, 80))
+    tables = travel_time_tables(holland_line1_profile(), grid)
+    base = random_input(seed=1, n_ch=8)
+
+    def windows(t0, n):
+        inp = BeamformInput(base.data[:, :n], FS, t0, 1500.0, base.element_offsets_m, base.source_offset_m,
+                            tables=tables)
+        return common.cell_windows(inp, grid, interp_mode("cubic"))
+
+    cases = [(0.0, 3000), (0.03, 3000), (0.0, 1200), (0.0, 3000)]
+    kept = [windows(t0, n) for t0, n in cases]
+    fresh = []
+    for t0, n in cases:
+        common._TABLE_WINDOWS = (lambda: None, {})
+        fresh.append(windows(t0, n))
+    for a, b in zip(kept, fresh):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(kept[0], kept[1]) and not np.array_equal(kept[0], kept[2])
+    ref = weakref.ref(tables)
+    del tables
+    gc.collect()
+    assert ref() is None

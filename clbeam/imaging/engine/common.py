@@ -6,6 +6,7 @@ import dataclasses
 import logging
 import math
 import time
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -342,8 +343,8 @@ def cell_windows(inp: BeamformInput, grid: PolarGrid, mode: InterpMode,
     reach = (np.linalg.norm(inp.source_offset_m) + np.max(np.linalg.norm(inp.element_offsets_m, axis=1), initial=0.0))
     reach = reach * inp.samples_per_m + 2.0
     n_a, n_r = grid.shape
-    win = np.zeros((n_a, 2), dtype=np.int32)
     if inp.tables is None:
+        win = np.zeros((n_a, 2), dtype=np.int32)
         base = range_bases(inp, grid)
         ok = (base + reach >= mode.taps_before) & (base - reach <= inp.n_samples - 1 - mode.taps_after)
         if not ok.any():
@@ -351,17 +352,44 @@ def cell_windows(inp: BeamformInput, grid: PolarGrid, mode: InterpMode,
         win[:, 0], win[:, 1] = int(np.argmax(ok)), int(n_r - np.argmax(ok[::-1]))
     else:  # per angle: the ray-traced time grows with range along an angle
         inp.check_tables(grid)
-        base = inp.cell_base_samples(grid)
-        with np.errstate(invalid="ignore"):
-            ok = (base + reach >= mode.taps_before) & (base - reach <= inp.n_samples - 1 - mode.taps_after)
-        any_ok = ok.any(axis=1)
-        win[:, 0] = np.where(any_ok, np.argmax(ok, axis=1), 0)
-        win[:, 1] = np.where(any_ok, n_r - np.argmax(ok[:, ::-1], axis=1), 0)
+        win = _table_windows(inp, grid, mode, reach).copy()
     if range_window_m is not None:
         user = user_windows(grid, range_window_m)
         win[:, 0] = np.maximum(win[:, 0], user[:, 0])
         win[:, 1] = np.minimum(win[:, 1], user[:, 1])
     win[:, 1] = np.maximum(win[:, 1], win[:, 0])
+    return win
+
+
+#: (weak reference to the tables, {key: windows}) of the last grid's tables (:func:`_table_windows`): a line's
+#: pings through one profile share them; replaced whole, so that a thread never files windows under another's tables
+_TABLE_WINDOWS: tuple = (lambda: None, {})
+
+
+def _table_windows(inp: BeamformInput, grid: PolarGrid, mode: InterpMode, reach: float) -> np.ndarray:
+    """The record's windows of :func:`cell_windows` through ``inp.tables`` (read-only).  A paper-size grid's take
+    0.1-0.2 s, so the last grid's are kept, per record start, rate, length, taps and reach (a list of points, a
+    refinement's, one range and new tables each call, is neither kept nor lets them go)."""
+    global _TABLE_WINDOWS
+    keep = grid.shape[1] > 1
+    key = (inp.t0_s, inp.sample_rate_hz, inp.n_samples, mode.taps_before, mode.taps_after, reach)
+    entry = _TABLE_WINDOWS
+    if keep and entry[0]() is not inp.tables:
+        entry = _TABLE_WINDOWS = (weakref.ref(inp.tables), {})
+    found = entry[1].get(key) if keep else None
+    if found is not None:
+        return found
+    n_r = grid.shape[1]
+    base = inp.cell_base_samples(grid)
+    with np.errstate(invalid="ignore"):
+        ok = (base + reach >= mode.taps_before) & (base - reach <= inp.n_samples - 1 - mode.taps_after)
+    any_ok = ok.any(axis=1)
+    win = np.zeros((grid.shape[0], 2), dtype=np.int32)
+    win[:, 0] = np.where(any_ok, np.argmax(ok, axis=1), 0)
+    win[:, 1] = np.where(any_ok, n_r - np.argmax(ok[:, ::-1], axis=1), 0)
+    win.setflags(write=False)
+    if keep:
+        entry[1][key] = win
     return win
 
 

@@ -43,6 +43,8 @@ CPU_LAYOUT = (16, 1)
 GPU_LAYOUT = (1, 64)
 #: fraction of the device's global memory one tile of outputs may use
 TILE_MEMORY_FRACTION = 0.25
+#: fraction of the device's global memory the kept per-cell tables' tiles may hold between calls
+KEPT_TABLE_MEMORY_FRACTION = 0.25
 
 
 #: bytes of host arrays an engine keeps for reuse at most (its last calls' results, once let go)
@@ -187,6 +189,7 @@ class OpenCLEngine(Engine):
         self._buffers: dict = {}
         self._data_key = None  # (data token, scale, baseband) of the data buffer's contents
         self._cell_tables = (None, None)  # (key, tables) of the last large grid's per-cell tables
+        self._table_tiles: dict = {}  # (first angle, angles, padded angles) -> device buffers of those tables' tiles
         self._lock = threading.Lock()
         self._fresnel_key = None
         self._fresnel_value = float("inf")
@@ -213,7 +216,7 @@ class OpenCLEngine(Engine):
             self._buffers.clear()
             self.host = HostArrays()
             self._data_key = None
-            self._cell_tables = (None, None)
+            self._forget_cell_tables()
 
     def _fresnel_range(self, offsets_m: np.ndarray, samples_per_m: float) -> float:
         key = (np.round(offsets_m, 6).tobytes(), round(samples_per_m, 9), self.fresnel)
@@ -374,8 +377,40 @@ class OpenCLEngine(Engine):
             return tabs
         tabs = cell_tables(inp, grid, self.real)
         if grid.n_cells >= CACHED_TABLE_CELLS and grid.shape[1] > 1:
+            self._forget_cell_tables()
             self._cell_tables = (key, tabs)
         return tabs
+
+    def _forget_cell_tables(self) -> None:
+        """Let the kept per-cell tables and their device tiles go."""
+        for bufs in self._table_tiles.values():
+            for buf in bufs:
+                buf.release()
+        self._table_tiles = {}
+        self._cell_tables = (None, None)
+
+    def _table_tile(self, cell_tabs: dict, a0: int, na: int, na_pad: int) -> list:
+        """Device buffers of the per-cell tables' angle rows ``a0 .. a0 + na`` padded to ``na_pad``: the kept
+        tables' tiles stay on the device for the next call (a paper-size grid's six tables, 0.2 GB, padded and
+        uploaded anew took 0.1-0.2 s a ping) while they fit :data:`KEPT_TABLE_MEMORY_FRACTION` of its memory."""
+        def padded(k):
+            return _padded_table(cell_tabs[k], a0, na, na_pad, k)
+
+        kept = self._table_tiles.get((a0, na, na_pad))
+        if kept is not None and cell_tabs is self._cell_tables[1]:
+            return kept
+        n_bytes = sum(cell_tabs[k].itemsize for k in TABLE_NAMES) * cell_tabs["int"].shape[1] * na_pad
+        held = sum(b.size for bufs in self._table_tiles.values() for b in bufs)
+        if cell_tabs is not self._cell_tables[1] or held + n_bytes > KEPT_TABLE_MEMORY_FRACTION * self.device.global_mem_size:
+            return [self.upload("tab_" + k, padded(k)) for k in TABLE_NAMES]
+        cl = pyopencl()
+        try:
+            bufs = [cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=padded(k))
+                    for k in TABLE_NAMES]
+        except cl.Error:  # the device is full: upload each call instead
+            return [self.upload("tab_" + k, padded(k)) for k in TABLE_NAMES]
+        self._table_tiles[(a0, na, na_pad)] = bufs
+        return bufs
 
     def _upload_data(self, inp, mode, scale: float):
         """The device copy of the channels times ``scale`` (basebanded for the basebanded modes),
@@ -407,8 +442,7 @@ class OpenCLEngine(Engine):
         tiles = launch_tiles(win, launch.lanes)
         tab_bufs = [self.buffer("tab_" + k, 16) for k in TABLE_NAMES]
         if launch.cell_tabs is not None:
-            tab_bufs = [self.upload("tab_" + k, _padded_table(launch.cell_tabs[k], a0, na, na_pad, k))
-                        for k in TABLE_NAMES]
+            tab_bufs = self._table_tile(launch.cell_tabs, a0, na, na_pad)
         out.clear(na_pad)
         if len(tiles):
             launch.kernel(self.queue, (len(tiles) * launch.local,), (launch.local,),

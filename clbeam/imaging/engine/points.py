@@ -59,14 +59,8 @@ def bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: n
                     names=("time_s", "launch_sin", "launch_cos", "wavefront_radius_m")) -> dict:
     """The travel-time tables of ``grid`` interpolated to points (NaN where a corner is unreachable): the
     fields ``names`` (the launch direction, when both its parts are asked for, normalised)."""
-    def corners(axis, x):
-        if axis.size < 2:
-            return np.zeros(x.shape, dtype=np.int64), np.zeros(x.shape)
-        i = np.clip(np.searchsorted(axis, x) - 1, 0, axis.size - 2)
-        return i, (x - axis[i]) / (axis[i + 1] - axis[i])
-
-    ia, ta = corners(grid.angles_deg, angles_deg)
-    ir, tr = corners(grid.ranges_m, ranges_m)
+    ia, ta = _lower_node(grid.angles_deg, angles_deg)
+    ir, tr = _lower_node(grid.ranges_m, ranges_m)
     n_r = grid.shape[1]
     ia1 = np.minimum(ia + 1, grid.shape[0] - 1)
     ir1 = np.minimum(ir + 1, n_r - 1)
@@ -86,3 +80,25 @@ def bilinear_tables(tables, grid: PolarGrid, ranges_m: np.ndarray, angles_deg: n
         norm = np.hypot(out["launch_sin"], out["launch_cos"])
         out["launch_sin"], out["launch_cos"] = out["launch_sin"] / norm, out["launch_cos"] / norm
     return out
+
+
+def _lower_node(axis: np.ndarray, x: np.ndarray) -> tuple:
+    """Index of the last node of the increasing ``axis`` below each ``x`` (``searchsorted(axis, x) - 1``, clipped
+    to the first and the last interval) and the fraction of its interval ``x`` lies at.  On an evenly spaced axis
+    the index is guessed from the spacing and corrected by one node where rounding put it off: a refinement's
+    hundreds of thousands of points took a binary search each."""
+    x = np.asarray(x, dtype=np.float64)
+    n = axis.size
+    if n < 2:
+        return np.zeros(x.shape, dtype=np.int64), np.zeros(x.shape)
+    step = (axis[-1] - axis[0]) / (n - 1)
+    if step > 0 and np.allclose(np.diff(axis), step, rtol=1e-6, atol=0.0):
+        with np.errstate(invalid="ignore"):
+            guess = np.floor((x - axis[0]) / step)
+        i = np.clip(np.nan_to_num(guess, nan=0.0), 0, n - 1).astype(np.int64)
+        i -= axis[i] >= x                                   # searchsorted(left) - 1: the last node strictly below
+        i += (i + 1 < n) & (axis[np.minimum(i + 1, n - 1)] < x)
+    else:
+        i = np.searchsorted(axis, x) - 1
+    i = np.clip(i, 0, n - 2)
+    return i, (x - axis[i]) / (axis[i + 1] - axis[i])
