@@ -453,14 +453,24 @@ class _Evaluator:
         self.inp = dataclasses.replace(inp, table_source=None, tables=None, data_token=inp.data_token or object())
 
     def __call__(self, ranges_m: np.ndarray, angles_deg: np.ndarray, outputs=("intensity", "cf")) -> Sums:
-        r = np.asarray(ranges_m, dtype=np.float64).ravel()
-        a = np.asarray(angles_deg, dtype=np.float64).ravel()
+        # in order of range: neighbouring points read neighbouring samples of each channel (a refinement's points
+        # in the peaks' order took 1.4-1.5x as long on a CPU, each peak's samples fetched anew from memory)
+        order = np.argsort(np.asarray(ranges_m, dtype=np.float64).ravel(), kind="stable")
+        r = np.asarray(ranges_m, dtype=np.float64).ravel()[order]
+        a = np.broadcast_to(np.asarray(angles_deg, dtype=np.float64), np.shape(ranges_m)).ravel()[order]
         points = point_grid(r.size)
         tables = _point_tables(self.tables, self.grid, r, a, self.inp.sound_speed_m_s, points)
         sums = self.engine.beamform(dataclasses.replace(self.inp, tables=tables), points, interp=self.mode.name,
                                     outputs=outputs)
         shape = np.shape(ranges_m)
-        return Sums(**{k: None if v is None else v.reshape(shape) for k, v in vars(sums).items() if k != "timings_s"})
+
+        def unsorted(v):
+            out = np.empty_like(v)
+            out[order] = v
+            return out.reshape(shape)
+
+        return Sums(**{k: None if v is None else unsorted(v.reshape(-1)) for k, v in vars(sums).items()
+                       if k != "timings_s"})
 
 
 def sums_at_points(engine, inp: BeamformInput, ranges_m: np.ndarray, angles_deg: np.ndarray, *,

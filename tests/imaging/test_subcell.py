@@ -146,6 +146,13 @@ def test_points_on_nodes_of_ray_traced_tables_are_the_grid_image(backend):
     got = sums_at_points(engine, inp, grid.ranges_m[ir], grid.angles_deg[ia], interp="cubic", grid=grid,
                          outputs=("intensity",)).intensity
     np.testing.assert_allclose(got, image[ia, ir], rtol=1e-5, atol=1e-6 * image.max())
+    # the points in any order (the evaluator takes them in order of range): each output back at its own point
+    sums = engine.beamform(inp, grid, interp="cubic", outputs=("sums",))
+    shuffle = np.random.default_rng(3).permutation(ia.size)
+    at = sums_at_points(engine, inp, grid.ranges_m[ir].ravel()[shuffle], grid.angles_deg[ia].ravel()[shuffle],
+                        interp="cubic", grid=grid, outputs=("sums",))
+    np.testing.assert_allclose(at.s, sums.s[ia, ir].ravel()[shuffle], rtol=1e-5, atol=1e-6 * np.sqrt(image.max()))
+    np.testing.assert_array_equal(at.m, sums.m[ia, ir].ravel()[shuffle])
     # between nodes both backends agree (the launch direction interpolated and normalised alike)
     other = get_engine("opencl" if backend == "reference" else "reference")
     r, a = np.array([0.7, 1.9, 2.3]), np.array([-50.0, 5.0, 31.0])
