@@ -311,17 +311,17 @@ def test_kept_table_windows_follow_the_record_and_let_their_tables_go():
     tables = travel_time_tables(holland_line1_profile(), grid)
     base = random_input(seed=1, n_ch=8)
 
-    def windows(t0, n):
+    def windows(t0, n, tab):
         inp = BeamformInput(base.data[:, :n], FS, t0, 1500.0, base.element_offsets_m, base.source_offset_m,
-                            tables=tables)
+                            tables=tab)
         return common.cell_windows(inp, grid, interp_mode("cubic"))
 
     cases = [(0.0, 3000), (0.03, 3000), (0.0, 1200), (0.0, 3000)]
-    kept = [windows(t0, n) for t0, n in cases]
+    kept = [windows(t0, n, tables) for t0, n in cases]
     fresh = []
     for t0, n in cases:
         common._TABLE_WINDOWS = (lambda: None, {})
-        fresh.append(windows(t0, n))
+        fresh.append(windows(t0, n, tables))
     for a, b in zip(kept, fresh):
         np.testing.assert_array_equal(a, b)
     assert not np.array_equal(kept[0], kept[1]) and not np.array_equal(kept[0], kept[2])
