@@ -393,24 +393,22 @@ class OpenCLEngine(Engine):
         """Device buffers of the per-cell tables' angle rows ``a0 .. a0 + na`` padded to ``na_pad``: the kept
         tables' tiles stay on the device for the next call (a paper-size grid's six tables, 0.2 GB, padded and
         uploaded anew took 0.1-0.2 s a ping) while they fit :data:`KEPT_TABLE_MEMORY_FRACTION` of its memory."""
-        def padded(k):
-            return _padded_table(cell_tabs[k], a0, na, na_pad, k)
-
-        kept = self._table_tiles.get((a0, na, na_pad))
-        if kept is not None and cell_tabs is self._cell_tables[1]:
-            return kept
-        n_bytes = sum(cell_tabs[k].itemsize for k in TABLE_NAMES) * cell_tabs["int"].shape[1] * na_pad
+        kept, key = cell_tabs is self._cell_tables[1], (a0, na, na_pad)
+        if kept and key in self._table_tiles:
+            return self._table_tiles[key]
+        padded = [_padded_table(cell_tabs[k], a0, na, na_pad, k) for k in TABLE_NAMES]
         held = sum(b.size for bufs in self._table_tiles.values() for b in bufs)
-        if cell_tabs is not self._cell_tables[1] or held + n_bytes > KEPT_TABLE_MEMORY_FRACTION * self.device.global_mem_size:
-            return [self.upload("tab_" + k, padded(k)) for k in TABLE_NAMES]
-        cl = pyopencl()
-        try:
-            bufs = [cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=padded(k))
-                    for k in TABLE_NAMES]
-        except cl.Error:  # the device is full: upload each call instead
-            return [self.upload("tab_" + k, padded(k)) for k in TABLE_NAMES]
-        self._table_tiles[(a0, na, na_pad)] = bufs
-        return bufs
+        if kept and held + sum(t.nbytes for t in padded) <= KEPT_TABLE_MEMORY_FRACTION * self.device.global_mem_size:
+            cl = pyopencl()
+            try:
+                bufs = [cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=t)
+                        for t in padded]
+            except cl.Error:  # the device is full: uploaded each call instead
+                pass
+            else:
+                self._table_tiles[key] = bufs
+                return bufs
+        return [self.upload("tab_" + k, t) for k, t in zip(TABLE_NAMES, padded)]
 
     def _upload_data(self, inp, mode, scale: float):
         """The device copy of the channels times ``scale`` (basebanded for the basebanded modes),
