@@ -17,7 +17,13 @@ to the world ping by ping.
    over the window), by cross-track offset at the window's centre and by
    burial (bins the gate's width and four times it, each in four staggered
    grids).  A cell holding
-   detections from at least ``seed_hits`` distinct pings is a seed.
+   detections from at least ``seed_hits`` distinct pings is a seed.  Once
+   the tracks of those seeds are chosen, a second transform over the
+   detections they left (and those of tracks scoring under ``min_score``)
+   widens the cells to the smear of a line crossing at each heading, and
+   keeps the cells its clutter would fill as well by chance at most once
+   in a million: a rough pipe at a steep heading spreads its echoes over a
+   dozen of the first cells.
 2. **Tracks**: from the strongest seed down, a line is followed ping by
    ping in both directions: a local straight-line fit to its last hits
    (over at most ``fit_length_m``) predicts the offset and the burial, the
@@ -54,6 +60,12 @@ MAX_SEEDS_PER_GRID = 200
 #: a seed of which candidates already hold more than this share grows no candidate of its own (they cost a
 #: follow each; at one half the boulder field's pipeline seeds were all skipped)
 SKIP_CLAIMED = 0.7
+#: the chance that the window's clutter fills a Hough cell widened to a smear as well, at most (:func:`_beyond_chance`:
+#: the windows hold hundreds of thousands of wide cells)
+WIDE_CELL_P = 1e-6
+#: a Hough cell is widened to a smear where the smear reaches this many of the gate's cells (narrower smears span
+#: two cells of the first seeds at most)
+SMEAR_CELL_MIN = 2.0
 #: a line whose members' RMS distance from its path is at least this share of the smear's half-width
 #: (``r beam |tan a| / 2``) is smeared (a rough crossing pipe: about 0.25-0.6; a tight line at a heading: 0.02)
 SMEARED_SPREAD = 0.15
@@ -184,8 +196,38 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
     # the tracks or the seeds grown before it in this round hold most of it (as in the first round)
     heap, _ = _candidates(frame, skipped, used, options, rank)
     tracks += _choose(frame, heap, used, options, rank)
+    tracks += _smeared_tracks(frame, tracks, used, options, rank)
     tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
     return tracks
+
+
+def _smeared_tracks(frame: TrackFrame, tracks: list, used: np.ndarray, options: LineOptions, rank) -> list[Track]:
+    """The lines smeared too widely for the gate's Hough cells (a rough pipe at a heading), seeded in widened cells
+    (:func:`hough_seeds` with ``smeared``) among the detections not taken by ``tracks`` that score at least
+    ``min_score``: a chance track of the clutter gives way to them, and keeps the rest of its detections while at
+    least ``min_hits`` (``tracks`` is changed in place, ``used`` updated)."""
+    weak = [i for i, tr in enumerate(tracks) if rank(tr) < options.min_score]
+    free = used.copy()
+    for i in weak:
+        free[tracks[i].members] = False
+    heap, _ = _candidates(frame, enumerate(hough_seeds(frame, options, smeared=free)), free, options, rank)
+    new = _choose(frame, heap, free, options, rank)
+    if not new:
+        return []
+    taken = np.zeros(used.size, dtype=bool)
+    for tr in new:
+        taken[tr.members] = True
+    for i in sorted(weak, reverse=True):
+        left = tracks[i].members[~taken[tracks[i].members]]
+        if left.size == tracks[i].members.size:
+            continue
+        if left.size < options.min_hits:
+            del tracks[i]
+            continue
+        k = np.searchsorted(frame.pings, frame.ping[left])
+        tracks[i] = Track(members=left, first=int(k[0]), last=int(k[-1]))
+    used |= taken
+    return new
 
 
 def _candidates(frame: TrackFrame, seeds, used: np.ndarray, options: LineOptions, rank) -> tuple[list, list]:
@@ -235,22 +277,28 @@ def _grow(frame: TrackFrame, seed: np.ndarray, used: np.ndarray, options: LineOp
     return Track(members=members, first=int(k[0]), last=int(k[-1]))
 
 
-def hough_seeds(frame: TrackFrame, options: LineOptions) -> list[np.ndarray]:
-    """Seeds of lines: detection index sets from the windowed Hough transform, most pings first."""
+def hough_seeds(frame: TrackFrame, options: LineOptions, smeared: np.ndarray | None = None) -> list[np.ndarray]:
+    """Seeds of lines: detection index sets from the windowed Hough transform, most pings first.  ``smeared``: a
+    mask of the detections that do not vote (those taken); the cells are then widened to a crossing line's smear
+    (:func:`_smear_cells`) and only the widened ones that hold more than chance seed (:func:`_beyond_chance`)."""
     n_win = max(1, int(options.window_pings))
     step = max(1, n_win // 2)
     seeds = []
     for k0 in range(0, max(1, frame.pings.size - n_win // 2), step):
         k1 = min(frame.pings.size, k0 + n_win)
         sl = slice(int(frame.starts[k0]), int(frame.starts[k1]))
-        seeds.extend(_window_seeds(frame, sl, k0, k1, options))
+        seeds.extend(_window_seeds(frame, sl, k0, k1, options, smeared))
     seeds.sort(key=lambda t: -t[0])
     return [idx for _, idx in seeds]
 
 
-def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineOptions) -> list:
-    """``(distinct pings, detection indices)`` of the Hough cells of one window that reach ``seed_hits``."""
+def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineOptions,
+                  smeared: np.ndarray | None = None) -> list:
+    """``(distinct pings, detection indices)`` of the Hough cells of one window that reach ``seed_hits``
+    (``smeared``: :func:`hough_seeds`')."""
     idx = np.arange(sl.start, sl.stop)
+    if smeared is not None:
+        idx = idx[~smeared[idx]]
     if idx.size < options.seed_hits:
         return []
     s, y, b = frame.s[idx], frame.y[idx], np.nan_to_num(frame.b_post[idx], nan=0.0)
@@ -258,11 +306,16 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
     n_local = k1 - k0
     s_mid = 0.5 * (frame.ping_s[k0] + frame.ping_s[k1 - 1])
     half = max(0.5 * (frame.ping_s[k1 - 1] - frame.ping_s[k0]), options.across_gate_m)
-    # adjacent headings part by 1.5 gates at the window's ends: three quarters of a bin
+    # adjacent headings part by 1.5 gates at the window's ends: three quarters of a bin (of the narrowest widened
+    # bin, for a smear's)
     t_max = math.tan(math.radians(options.max_angle_deg))
-    tans = np.linspace(-t_max, t_max, 2 * int(math.ceil(t_max * half / (1.5 * options.across_gate_m))) + 1)
+    part = 1.5 * options.across_gate_m * (1.0 if smeared is None else SMEAR_CELL_MIN)
+    tans = np.linspace(-t_max, t_max, 2 * int(math.ceil(t_max * half / part)) + 1)
     icpt = y[None, :] - tans[:, None] * (s - s_mid)[None, :]
-    width_y = 2 * options.across_gate_m
+    if smeared is None:
+        cell_y = icpt / (2 * options.across_gate_m)
+    else:
+        cell_y, width_m = _smear_cells(icpt, tans, frame.r[idx], y, options)
     out = []
     # burial bins of the gate's width, and four times wider for peaks away from nadir whose burial wanders
     grids = [(oy, ob, w) for w in (2 * options.burial_gate_m, 8 * options.burial_gate_m)
@@ -276,7 +329,7 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
         voters = (wandering if width_b > 2 * options.burial_gate_m else np.ones(idx.size, dtype=bool)) & plausible
         if voters.sum() < options.seed_hits:
             continue
-        iy = np.floor(icpt[:, voters] / width_y + oy).astype(np.int64)
+        iy = np.floor(cell_y[:, voters] + oy).astype(np.int64)
         ib = np.floor(b[voters] / width_b + ob).astype(np.int64)
         iy -= iy.min()
         ib -= ib.min()
@@ -293,6 +346,9 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
         pairs = np.unique(c * n_local + ping_local[dd])
         cells, hits = np.unique(pairs // n_local, return_counts=True)
         good = hits >= options.seed_hits
+        if smeared is not None:
+            good[good] = _beyond_chance(cells[good], hits[good], c, width_m[jj, dv], ib, n_local, np.ptp(y[voters]),
+                                        nb, options)
         if not good.any():
             continue
         # the strongest cells only: in dense clutter the rest are chance and cost a follow each
@@ -306,6 +362,58 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
         by_cell = dict(zip(keep_cells.tolist(), keep_hits.tolist()))
         out.extend((by_cell[int(c[a])], members[a:b]) for a, b in zip(bounds[:-1], bounds[1:]))
     return out
+
+
+def _smear_cells(icpt: np.ndarray, tans: np.ndarray, r: np.ndarray, y: np.ndarray, options: LineOptions
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The Hough cells' coordinate across (cells one unit wide) of the intercepts ``icpt`` ``(headings, n)`` (m),
+    and the cells' widths there (m).
+
+    Cells ``W = 2 across_gate_m`` wide, widened at a heading ``a`` to the
+    smear of a line crossing there, ``k sqrt(y^2 + D^2)`` with ``k = beam
+    |tan a|`` (the slant range at offset ``y`` from the window's depth ``D``
+    below the track, the median of ``sqrt(r^2 - y^2)`` over its detections of
+    slant range ``r``), where it reaches :data:`SMEAR_CELL_MIN` ``W``: a rough
+    pipe at a heading spreads its echoes over the smear, and one cell holds
+    them.  The coordinate is the integral of ``dy`` over the cell's width:
+    ``y / W`` out to ``y_c``, where the smear reaches that width, then
+    ``y_c / W + (asinh(y / D) - asinh(y_c / D)) / k`` (odd in ``y``).
+    """
+    width = 2 * options.across_gate_m
+    depth = max(float(np.median(np.sqrt(np.maximum(r * r - y * y, 0.0)))) if r.size else 0.0, 1.0)
+    k = (math.radians(options.beam_width_deg) * np.abs(tans))[:, None]
+    ratio = np.divide(SMEAR_CELL_MIN * width, k, out=np.full(k.shape, np.inf), where=k > 0)
+    y_c = np.sqrt(np.maximum(ratio * ratio - depth * depth, 0.0))
+    a = np.abs(icpt)
+    beyond = np.divide(np.arcsinh(a / depth) - np.arcsinh(np.minimum(y_c, a) / depth), k,
+                       out=np.zeros(icpt.shape), where=k > 0)
+    smear = np.where(a > y_c, k * np.hypot(icpt, depth), width)
+    return np.sign(icpt) * (np.minimum(a, y_c) / width + beyond), smear
+
+
+def _beyond_chance(cells: np.ndarray, hits: np.ndarray, pair_cell: np.ndarray, pair_width_m: np.ndarray,
+                   ib: np.ndarray, n_local: int, span_m: float, nb: int, options: LineOptions) -> np.ndarray:
+    """Which Hough cells of ``hits`` distinct pings (of ``n_local``) hold more than chance: a cell widened to a
+    smear (:func:`_smear_cells`; a cell of the gate's width is left to the first seeds) when the window's clutter
+    would fill as many of
+    its pings with a chance of at most :data:`WIDE_CELL_P` (binomial, a ping's chance ``1 - exp(-rho w)`` at the
+    density ``rho``
+    (per m across and ping) of its burial bin's voters (``ib``, spread over ``span_m``) and its width ``w`` (m:
+    the mean of its detections' ``pair_width_m``, ``pair_cell`` their cells).  A wide cell in dense clutter
+    fills by chance: each such seed would cost a follow."""
+    from scipy.special import bdtrc
+
+    if not cells.size:
+        return np.zeros(0, dtype=bool)
+    pos = np.searchsorted(cells, pair_cell)
+    inside = (pos < cells.size) & (cells[np.minimum(pos, cells.size - 1)] == pair_cell)
+    width = np.bincount(pos[inside], pair_width_m[inside], cells.size) / np.maximum(
+        np.bincount(pos[inside], minlength=cells.size), 1)
+    wide = width > 2 * options.across_gate_m * (1 + 1e-9)  # widened: at least SMEAR_CELL_MIN gate cells
+    rho = np.bincount(ib, minlength=nb)[cells % nb] / (n_local * max(span_m, 1.0))
+    p_ping = -np.expm1(-rho * width)
+    # P(X >= hits), X ~ Binomial(n_local, p_ping)
+    return wide & (bdtrc(hits - 1, n_local, p_ping) <= WIDE_CELL_P)
 
 
 def _follow(frame: TrackFrame, seed: np.ndarray, used: np.ndarray, options: LineOptions) -> np.ndarray:

@@ -234,3 +234,18 @@ def test_two_tight_pipes_side_by_side_at_a_heading_stay_two_lines():
     pipes = sorted(r["mean_y_m"] - np.mean(np.arange(n) * 8.2 * math.tan(a)) for r in lines.rows
                    if r["kind"] == "pipeline")
     assert len(pipes) == 2 and abs(pipes[0] - 300.0) < 1.0 and abs(pipes[1] - 330.0) < 1.0
+
+
+def test_a_side_whose_copies_barely_reach_the_detections_does_not_set_the_clutter_rate():
+    """A line 1 m inside the detections' edge: its copies beyond the edge lie within the extent in one ping
+    only, where the floor of one hit over their pings would read as clutter in every ping (rate 1).  The rate
+    is the other side's, the closed form ``1 - exp(-2 w rho)`` of Poisson clutter."""
+    rng = np.random.default_rng(8)
+    per_m = 0.02
+    ping, y, _ = poisson_clutter(per_m, (-600.0, 400.0), lambda n: np.zeros(n), rng)
+    path_y = np.full(N_PINGS, -598.0)
+    path_y[0] = -590.0  # the nearest copy on the outer side (6 m out) lies inside the extent in this ping only
+    offsets = copy_offsets(GATE_Y)
+    p = clutter_hit_rate(y - path_y[ping], ping, path_y, offsets, GATE_Y, (-600.0, 400.0))
+    expected = -math.expm1(-per_m * 2 * GATE_Y)
+    assert p[0] == pytest.approx(expected, abs=4 * math.sqrt(expected / (offsets.size // 2 * N_PINGS)))
