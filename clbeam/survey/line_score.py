@@ -181,17 +181,21 @@ def clutter_hit_rate(dy: np.ndarray, ping_index: np.ndarray, path_y: np.ndarray,
     """
     strength = np.ones(dy.size) if cf is None else np.asarray(cf, dtype=np.float64)
     counts, trials = _copy_counts(dy, ping_index, path_y, offsets_m, across_gate_m, y_range_m, strength, cf_levels)
-    sides = [np.asarray(offsets_m) < 0, np.asarray(offsets_m) > 0]
-    # a side whose copies lie within the detections' extent over fewer pings than the line spans (a line at the
-    # swath's edge) measures nothing: its floor of one hit over a few pings would read as clutter in every ping
-    covered = [trials[side].sum() >= path_y.size for side in sides]
-    if any(covered):
-        sides = [side for side, ok in zip(sides, covered) if ok]
+    sides = _measuring_sides(np.asarray(offsets_m), trials, path_y.size)
     rates = [[_pooled_rate(counts[side, k], trials[side], outlier_p) for side in sides]
              for k in range(len(cf_levels))]
     if not np.isfinite(rates).any():  # no copy inside the detections' extent
         return np.full(len(cf_levels), 1.0 / max(path_y.size, 1))
     return np.nanmax(np.asarray(rates, dtype=np.float64), axis=1)
+
+
+def _measuring_sides(offsets_m: np.ndarray, trials: np.ndarray, n_pings: int) -> list:
+    """Masks of the copies on each side of a line of ``n_pings`` pings, less a side whose copies lie within the
+    detections' extent over fewer pings than the line spans (a line at the swath's edge) while the other's do not:
+    its floor of one hit over a few pings would read as clutter in every ping."""
+    sides = [offsets_m < 0, offsets_m > 0]
+    covered = [trials[side].sum() >= n_pings for side in sides]
+    return [side for side, ok in zip(sides, covered) if ok] if any(covered) else sides
 
 
 def _copy_counts(dy, ping_index, path_y, offsets_m, across_gate_m, y_range_m, strength, cf_levels) -> tuple:

@@ -301,21 +301,10 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
         idx = idx[~smeared[idx]]
     if idx.size < options.seed_hits:
         return []
-    s, y, b = frame.s[idx], frame.y[idx], np.nan_to_num(frame.b_post[idx], nan=0.0)
+    y, b = frame.y[idx], np.nan_to_num(frame.b_post[idx], nan=0.0)
     ping_local = np.searchsorted(frame.pings[k0:k1], frame.ping[idx])
     n_local = k1 - k0
-    s_mid = 0.5 * (frame.ping_s[k0] + frame.ping_s[k1 - 1])
-    half = max(0.5 * (frame.ping_s[k1 - 1] - frame.ping_s[k0]), options.across_gate_m)
-    # adjacent headings part by 1.5 gates at the window's ends: three quarters of a bin (of the narrowest widened
-    # bin, for a smear's)
-    t_max = math.tan(math.radians(options.max_angle_deg))
-    part = 1.5 * options.across_gate_m * (1.0 if smeared is None else SMEAR_CELL_MIN)
-    tans = np.linspace(-t_max, t_max, 2 * int(math.ceil(t_max * half / part)) + 1)
-    icpt = y[None, :] - tans[:, None] * (s - s_mid)[None, :]
-    if smeared is None:
-        cell_y = icpt / (2 * options.across_gate_m)
-    else:
-        cell_y, width_m = _smear_cells(icpt, tans, frame.r[idx], y, options)
+    n_tans, cell_y, width_m = _window_cells(frame, idx, k0, k1, options, smeared is not None)
     out = []
     # burial bins of the gate's width, and four times wider for peaks away from nadir whose burial wanders
     grids = [(oy, ob, w) for w in (2 * options.burial_gate_m, 8 * options.burial_gate_m)
@@ -335,7 +324,7 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
         ib -= ib.min()
         ny, nb = int(iy.max() + 1), int(ib.max() + 1)
         # one integer per (heading, offset, burial) cell; detections counted first, distinct pings for the few
-        cell = (np.arange(tans.size)[:, None] * ny + iy) * nb + ib[None, :]
+        cell = (np.arange(n_tans)[:, None] * ny + iy) * nb + ib[None, :]
         counts = np.bincount(cell.ravel())
         full = np.flatnonzero(counts >= options.seed_hits)
         if not full.size:
@@ -349,19 +338,42 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
         if smeared is not None:
             good[good] = _beyond_chance(cells[good], hits[good], c, width_m[jj, dv], ib, n_local, np.ptp(y[voters]),
                                         nb, options)
-        if not good.any():
-            continue
-        # the strongest cells only: in dense clutter the rest are chance and cost a follow each
-        best = np.argsort(-hits[good], kind="stable")[:MAX_SEEDS_PER_GRID]
-        keep_cells, keep_hits = cells[good][best], hits[good][best]
-        sel = np.isin(c, keep_cells)
-        c, dd = c[sel], dd[sel]
-        order = np.argsort(c, kind="stable")
-        c, members = c[order], idx[dd[order]]
-        bounds = np.r_[0, np.flatnonzero(np.diff(c)) + 1, c.size]
-        by_cell = dict(zip(keep_cells.tolist(), keep_hits.tolist()))
-        out.extend((by_cell[int(c[a])], members[a:b]) for a, b in zip(bounds[:-1], bounds[1:]))
+        if good.any():
+            out.extend(_strongest_cells(cells[good], hits[good], c, idx[dd]))
     return out
+
+
+def _window_cells(frame: TrackFrame, idx: np.ndarray, k0: int, k1: int, options: LineOptions, smeared: bool
+                  ) -> tuple:
+    """The window's headings' count, and per heading and detection ``idx`` the Hough cells' coordinate across
+    (the gate's cells, or widened to a smear: :func:`_smear_cells`) and their widths (m; ``None`` for the gate's)."""
+    s, y = frame.s[idx], frame.y[idx]
+    s_mid = 0.5 * (frame.ping_s[k0] + frame.ping_s[k1 - 1])
+    half = max(0.5 * (frame.ping_s[k1 - 1] - frame.ping_s[k0]), options.across_gate_m)
+    # adjacent headings part by 1.5 gates at the window's ends: three quarters of a bin (of the narrowest widened
+    # bin, for a smear's)
+    t_max = math.tan(math.radians(options.max_angle_deg))
+    part = 1.5 * options.across_gate_m * (SMEAR_CELL_MIN if smeared else 1.0)
+    tans = np.linspace(-t_max, t_max, 2 * int(math.ceil(t_max * half / part)) + 1)
+    icpt = y[None, :] - tans[:, None] * (s - s_mid)[None, :]
+    if not smeared:
+        return tans.size, icpt / (2 * options.across_gate_m), None
+    return (tans.size, *_smear_cells(icpt, tans, frame.r[idx], y, options))
+
+
+def _strongest_cells(cells: np.ndarray, hits: np.ndarray, pair_cell: np.ndarray, pair_det: np.ndarray) -> list:
+    """``(hits, detection indices)`` of the :data:`MAX_SEEDS_PER_GRID` cells with the most ``hits`` (in dense
+    clutter the rest are chance and cost a follow each); ``pair_cell``, ``pair_det``: each vote's cell and
+    detection."""
+    best = np.argsort(-hits, kind="stable")[:MAX_SEEDS_PER_GRID]
+    keep_cells, keep_hits = cells[best], hits[best]
+    sel = np.isin(pair_cell, keep_cells)
+    c, members = pair_cell[sel], pair_det[sel]
+    order = np.argsort(c, kind="stable")
+    c, members = c[order], members[order]
+    bounds = np.r_[0, np.flatnonzero(np.diff(c)) + 1, c.size]
+    by_cell = dict(zip(keep_cells.tolist(), keep_hits.tolist()))
+    return [(by_cell[int(c[a])], members[a:b]) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def _smear_cells(icpt: np.ndarray, tans: np.ndarray, r: np.ndarray, y: np.ndarray, options: LineOptions
