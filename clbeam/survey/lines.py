@@ -407,12 +407,10 @@ def _beyond_chance(cells: np.ndarray, hits: np.ndarray, pair_cell: np.ndarray, p
                    ib: np.ndarray, n_local: int, span_m: float, nb: int, options: LineOptions) -> np.ndarray:
     """Which Hough cells of ``hits`` distinct pings (of ``n_local``) hold more than chance: a cell widened to a
     smear (:func:`_smear_cells`; a cell of the gate's width is left to the first seeds) when the window's clutter
-    would fill as many of
-    its pings with a chance of at most :data:`WIDE_CELL_P` (binomial, a ping's chance ``1 - exp(-rho w)`` at the
-    density ``rho``
-    (per m across and ping) of its burial bin's voters (``ib``, spread over ``span_m``) and its width ``w`` (m:
-    the mean of its detections' ``pair_width_m``, ``pair_cell`` their cells).  A wide cell in dense clutter
-    fills by chance: each such seed would cost a follow."""
+    would fill as many of its pings with a chance of at most :data:`WIDE_CELL_P`.  Binomial, a ping's chance
+    ``1 - exp(-rho w)`` at the density ``rho`` (per m across and ping) of its burial bin's voters (``ib``, spread
+    over ``span_m`` m) and its width ``w`` (m: the mean of its detections' ``pair_width_m``, ``pair_cell`` their
+    cells).  A wide cell in dense clutter fills by chance: each such seed would cost a follow."""
     from scipy.special import bdtrc
 
     if not cells.size:
