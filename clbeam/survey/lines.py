@@ -203,14 +203,15 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
 
 def _smeared_tracks(frame: TrackFrame, tracks: list, used: np.ndarray, options: LineOptions, rank) -> list[Track]:
     """The lines smeared too widely for the gate's Hough cells (a rough pipe at a heading), seeded in widened cells
-    (:func:`hough_seeds` with ``smeared``) among the detections not taken by ``tracks`` that score at least
+    (:func:`hough_seeds` ``widened``) among the detections not taken by ``tracks`` that score at least
     ``min_score``: a chance track of the clutter gives way to them, and keeps the rest of its detections while at
     least ``min_hits`` (``tracks`` is changed in place, ``used`` updated)."""
     weak = [i for i, tr in enumerate(tracks) if rank(tr) < options.min_score]
     free = used.copy()
     for i in weak:
         free[tracks[i].members] = False
-    heap, _ = _candidates(frame, enumerate(hough_seeds(frame, options, smeared=free)), free, options, rank)
+    heap, _ = _candidates(frame, enumerate(hough_seeds(frame, options, widened=True, taken=free)), free, options,
+                          rank)
     new = _choose(frame, heap, free, options, rank)
     if not new:
         return []
@@ -277,34 +278,35 @@ def _grow(frame: TrackFrame, seed: np.ndarray, used: np.ndarray, options: LineOp
     return Track(members=members, first=int(k[0]), last=int(k[-1]))
 
 
-def hough_seeds(frame: TrackFrame, options: LineOptions, smeared: np.ndarray | None = None) -> list[np.ndarray]:
-    """Seeds of lines: detection index sets from the windowed Hough transform, most pings first.  ``smeared``: a
-    mask of the detections that do not vote (those taken); the cells are then widened to a crossing line's smear
-    (:func:`_smear_cells`) and only the widened ones that hold more than chance seed (:func:`_beyond_chance`)."""
+def hough_seeds(frame: TrackFrame, options: LineOptions, *, widened: bool = False,
+                taken: np.ndarray | None = None) -> list[np.ndarray]:
+    """Seeds of lines: detection index sets from the windowed Hough transform, most pings first.  ``widened``: the
+    cells widened to a crossing line's smear (:func:`_smear_cells`), and only the widened ones that hold more than
+    chance seed (:func:`_beyond_chance`); ``taken``: a mask of the detections that do not vote."""
     n_win = max(1, int(options.window_pings))
     step = max(1, n_win // 2)
     seeds = []
     for k0 in range(0, max(1, frame.pings.size - n_win // 2), step):
         k1 = min(frame.pings.size, k0 + n_win)
         sl = slice(int(frame.starts[k0]), int(frame.starts[k1]))
-        seeds.extend(_window_seeds(frame, sl, k0, k1, options, smeared))
+        seeds.extend(_window_seeds(frame, sl, k0, k1, options, widened, taken))
     seeds.sort(key=lambda t: -t[0])
     return [idx for _, idx in seeds]
 
 
 def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineOptions,
-                  smeared: np.ndarray | None = None) -> list:
+                  widened: bool = False, taken: np.ndarray | None = None) -> list:
     """``(distinct pings, detection indices)`` of the Hough cells of one window that reach ``seed_hits``
-    (``smeared``: :func:`hough_seeds`')."""
+    (``widened``, ``taken``: :func:`hough_seeds`')."""
     idx = np.arange(sl.start, sl.stop)
-    if smeared is not None:
-        idx = idx[~smeared[idx]]
+    if taken is not None:
+        idx = idx[~taken[idx]]
     if idx.size < options.seed_hits:
         return []
     y, b = frame.y[idx], np.nan_to_num(frame.b_post[idx], nan=0.0)
     ping_local = np.searchsorted(frame.pings[k0:k1], frame.ping[idx])
     n_local = k1 - k0
-    n_tans, cell_y, width_m = _window_cells(frame, idx, k0, k1, options, smeared is not None)
+    n_tans, cell_y, width_m = _window_cells(frame, idx, k0, k1, options, widened)
     out = []
     # burial bins of the gate's width, and four times wider for peaks away from nadir whose burial wanders
     grids = [(oy, ob, w) for w in (2 * options.burial_gate_m, 8 * options.burial_gate_m)
@@ -335,7 +337,7 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
         pairs = np.unique(c * n_local + ping_local[dd])
         cells, hits = np.unique(pairs // n_local, return_counts=True)
         good = hits >= options.seed_hits
-        if smeared is not None:
+        if widened:
             good[good] = _beyond_chance(cells[good], hits[good], c, width_m[jj, dv], ib, n_local, np.ptp(y[voters]),
                                         nb, options)
         if good.any():
@@ -343,7 +345,7 @@ def _window_seeds(frame: TrackFrame, sl: slice, k0: int, k1: int, options: LineO
     return out
 
 
-def _window_cells(frame: TrackFrame, idx: np.ndarray, k0: int, k1: int, options: LineOptions, smeared: bool
+def _window_cells(frame: TrackFrame, idx: np.ndarray, k0: int, k1: int, options: LineOptions, widened: bool
                   ) -> tuple:
     """The window's headings' count, and per heading and detection ``idx`` the Hough cells' coordinate across
     (the gate's cells, or widened to a smear: :func:`_smear_cells`) and their widths (m; ``None`` for the gate's)."""
@@ -353,10 +355,10 @@ def _window_cells(frame: TrackFrame, idx: np.ndarray, k0: int, k1: int, options:
     # adjacent headings part by 1.5 gates at the window's ends: three quarters of a bin (of the narrowest widened
     # bin, for a smear's)
     t_max = math.tan(math.radians(options.max_angle_deg))
-    part = 1.5 * options.across_gate_m * (SMEAR_CELL_MIN if smeared else 1.0)
+    part = 1.5 * options.across_gate_m * (SMEAR_CELL_MIN if widened else 1.0)
     tans = np.linspace(-t_max, t_max, 2 * int(math.ceil(t_max * half / part)) + 1)
     icpt = y[None, :] - tans[:, None] * (s - s_mid)[None, :]
-    if not smeared:
+    if not widened:
         return tans.size, icpt / (2 * options.across_gate_m), None
     return (tans.size, *_smear_cells(icpt, tans, frame.r[idx], y, options))
 

@@ -547,7 +547,7 @@ def test_a_seed_skipped_for_a_candidate_that_later_lost_its_line_still_grows(mon
     def seed_of(line, lo, hi):
         return np.flatnonzero((owner == line) & (frame.ping >= lo) & (frame.ping <= hi))
     seeds = [seed_of(0, 0, 9), seed_of(0, 40, 49), seed_of(1, 40, 49)]
-    monkeypatch.setattr(lines_module, "hough_seeds", lambda frame, options, smeared=None: [] if smeared is not None else seeds)
+    monkeypatch.setattr(lines_module, "hough_seeds", lambda frame, options, widened=False, taken=None: [] if widened else seeds)
 
     def rank(track):
         m = track.members[track.members.size // 2:]
