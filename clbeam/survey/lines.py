@@ -207,19 +207,19 @@ def _smeared_tracks(frame: TrackFrame, tracks: list, used: np.ndarray, options: 
     ``min_score``: a chance track of the clutter gives way to them, and keeps the rest of its detections while at
     least ``min_hits`` (``tracks`` is changed in place, ``used`` updated)."""
     weak = [i for i, tr in enumerate(tracks) if rank(tr) < options.min_score]
-    free = used.copy()
+    held = used.copy()  # the detections of the tracks that score: they do not vote
     for i in weak:
-        free[tracks[i].members] = False
-    heap, _ = _candidates(frame, enumerate(hough_seeds(frame, options, widened=True, taken=free)), free, options,
+        held[tracks[i].members] = False
+    heap, _ = _candidates(frame, enumerate(hough_seeds(frame, options, widened=True, taken=held)), held, options,
                           rank)
-    new = _choose(frame, heap, free, options, rank)
+    new = _choose(frame, heap, held, options, rank)
     if not new:
         return []
-    taken = np.zeros(used.size, dtype=bool)
+    by_new = np.zeros(used.size, dtype=bool)
     for tr in new:
-        taken[tr.members] = True
+        by_new[tr.members] = True
     for i in sorted(weak, reverse=True):
-        left = tracks[i].members[~taken[tracks[i].members]]
+        left = tracks[i].members[~by_new[tracks[i].members]]
         if left.size == tracks[i].members.size:
             continue
         if left.size < options.min_hits:
@@ -227,7 +227,7 @@ def _smeared_tracks(frame: TrackFrame, tracks: list, used: np.ndarray, options: 
             continue
         k = np.searchsorted(frame.pings, frame.ping[left])
         tracks[i] = Track(members=left, first=int(k[0]), last=int(k[-1]))
-    used |= taken
+    used |= by_new
     return new
 
 
