@@ -42,10 +42,13 @@ SLIDE_PER_BEAM = 0.5
 #: where a pipe's echo mixes with boulders or smears as it crosses; at 0.02-0.03 one of Line 4's seven surveys
 #: put A 0.66 m and B 1.42 m off, at 0.05 none more than 0.61 m
 SLIDE_FLOOR_RAD = math.radians(0.05)
-#: spread of the prior on a specular line's ``k`` about 1 (:func:`specular_fit`): the extra depth ``dz`` is
-#: computed from the line's own heading and a prior burial, so ``k`` scatters about 1 (0.6-1.4 measured on Line 4's
-#: far pipes over noise seeds); at 0.5 Line 4's C burial error fell from 1.22 to 0.66 m RMS over seven seeds
-SPECULAR_K_SIGMA = 0.5
+#: spread of the prior on a specular line's ``k`` about 1 (:func:`specular_fit`): with the echoes moved by range to
+#: the pipe's depth (:func:`clbeam.survey.specular.offsets_at_depth`) the nearest point lies ``h sin a*`` off the
+#: plane for a curved pipe too, so ``dz`` is the geometry's and ``k`` is 1 but for the beam's pull; at 0.5 (when
+#: ``dz`` came from echoes moved part of the way, ``k`` 0.6-1.4 on Line 4's far pipes) the tuning draw family:4's
+#: A, smooth and exposed at 10 degrees, had ``k`` 0.67 and its burial 1.1 m deep; at 0.1 it is 0.12 m deep, and
+#: Line 4's burials over seven seeds move by 0.03 m RMS or less
+SPECULAR_K_SIGMA = 0.1
 #: a line's burial takes its standard error from its own burials' scatter about the fit (as the Birge ratio) when it
 #: has at least this many (:func:`clbeam.survey.lines.line_burial`, :func:`specular_fit`); with fewer, from the
 #: slides alone.  The slides are conservative far from nadir (2-3 times the scatter at Line 4's pipes)

@@ -22,7 +22,7 @@ from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
 from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, line_path, smear_half_width
-from clbeam.survey.specular import fading_fit, fading_floor_db, specular_crossing
+from clbeam.survey.specular import fading_fit, fading_floor_db, offsets_at_depth, specular_crossing
 
 log = logging.getLogger(__name__)
 
@@ -207,6 +207,9 @@ SHADOW_DB = 6.0
 #: a line at such a heading that its burials do not show to be rough has ``dz / 2`` added to its burial's error
 #: (:func:`diffuse_shift`)
 SMOOTH_SEEN_BEAMS = 2.0
+#: passes of a specular line's burial fit and its echoes moved by range to the pipe's depth
+#: (:func:`_specular_burial`): the first fit reads the extra depths from echoes moved only part of the way
+SPECULAR_PASSES = 2
 
 
 def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions, level: np.ndarray | None = None
@@ -389,9 +392,8 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     (:func:`clbeam.survey.specular.specular_crossing`), when its burials say so (:func:`clbeam.survey.burial.
     specular_fit`: ``k`` within two standard errors of 1 and more than two from 0) or its echoes fade as a
     specular echo's over the pings with a seabed (:func:`_fades`) and the burials do not say otherwise (``k``
-    more than three standard errors below 1); else ``None``.  Its burial is then the fit's with ``k`` drawn
-    towards 1 (:data:`~clbeam.survey.burial.SPECULAR_K_SIGMA`) over the echoes whose nearest point lies
-    within half of ``beam_width_deg`` of the plane."""
+    more than three standard errors below 1); else ``None``.  Its burial, and its echoes moved to the pipe's
+    depth that the crossings are found from, are then :func:`_specular_burial`'s."""
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     s_ext = frame.ping_s[tr.first:tr.last + 1]
@@ -411,12 +413,28 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     fades = _fades(frame, m[moved], slope[k[moved]], centre_yz[g[moved], 0], level, options)
     if moved.sum() < 3 or not (by_burial or (fades and not not_specular)):
         return diffuse_shift(fit, frame.smear[m], not_specular, options)
-    y_c = specular_crossing(frame.y[m][moved], frame.s[m][moved], centre_yz[g[moved], 0], s_ext, options.fit_length_m)
-    # specular, whatever the free fit's k: the burial with k drawn towards the geometry's 1, from the echoes
-    # whose nearest point lies inside the transmit beam (half its width: as _undecided's gate)
-    fit = specular_fit(frame.y[m], frame.b[m], frame.b_sigma[m], slope[k], centre_yz[g], sb[g],
-                       k_prior_sigma=SPECULAR_K_SIGMA, max_offplane_rad=0.5 * math.radians(options.beam_width_deg))
+    fit, y_echo = _specular_burial(frame, m, slope[k], centre_yz[g], sb[g], options)
+    y_c = specular_crossing(y_echo[moved], frame.s[m][moved], centre_yz[g[moved], 0], s_ext, options.fit_length_m)
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
+
+
+def _specular_burial(frame: TrackFrame, m: np.ndarray, slope: np.ndarray, centre_yz: np.ndarray, sb: np.ndarray,
+                     options: LineOptions) -> tuple[dict, np.ndarray]:
+    """A specular line's burial and its echoes at the pipe's depth, found together: whatever the free fit's
+    ``k``, the burial with ``k`` drawn towards the geometry's 1 (:data:`~clbeam.survey.burial.SPECULAR_K_SIGMA`)
+    from the echoes whose nearest point lies inside the transmit beam (half its width: as the undecided
+    gate's), then the echoes moved by range to that depth (:func:`clbeam.survey.specular.offsets_at_depth`,
+    where the range reaches it), which sets the extra depths of the next fit (:data:`SPECULAR_PASSES` passes).
+    Returns the last fit (:func:`clbeam.survey.burial.specular_fit`) and the members' offsets (m)."""
+    y_echo = frame.y[m].copy()
+    for _ in range(SPECULAR_PASSES):
+        fit = specular_fit(y_echo, frame.b[m], frame.b_sigma[m], slope, centre_yz, sb, k_prior_sigma=SPECULAR_K_SIGMA,
+                           max_offplane_rad=0.5 * math.radians(options.beam_width_deg))
+        if frame.r is None or not math.isfinite(fit["burial_m"]):
+            break
+        at_depth = offsets_at_depth(frame.r[m], frame.y[m], centre_yz, sb, fit["burial_m"])
+        y_echo = np.where(np.isfinite(at_depth) & np.isfinite(frame.b[m]), at_depth, frame.y[m])
+    return fit, y_echo
 
 
 def diffuse_shift(fit: dict, smear_m: np.ndarray, not_specular: bool, options: LineOptions) -> dict | None:

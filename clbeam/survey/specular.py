@@ -95,6 +95,44 @@ def specular_crossing(echo_y, s_m, centre_y, at_s, half_width_m: float) -> np.nd
     return centre + crossing_offset(u, u1, u2)
 
 
+def offsets_at_depth(range_m, y_m, centre_yz_m, seabed, burial_m: float) -> np.ndarray:
+    """Echoes moved along their arcs to a pipe's depth, from their slant ranges alone.
+
+    A smooth pipe's echo lies at the slant range ``r`` of the pipe's point
+    nearest the grid centre; at the pipe's depth ``Z`` below the centre that
+    point lies ``u = sqrt(r^2 - Z^2)`` across from it, whatever angle the
+    echo was imaged at.  The range is measured to a few centimetres in every
+    ping while the depth's error (the line's burial) is one for the whole
+    line, so ``u`` changes from ping to ping as smoothly as the pipe does:
+    its derivatives along the track are what :func:`specular_crossing`
+    needs.  The seabed is read at the imaged offset (the nearest point's
+    offset across, kept by the imaging's cone angle).
+
+    Parameters
+    ----------
+    range_m, y_m : array_like
+        ``(n,)`` the echoes' slant ranges from their grid centres and
+        their imaged offsets across the track (m).
+    centre_yz_m, seabed : array_like
+        ``(n, 2)`` grid centres (m) and the pings' seabeds ``(z0, slope)``.
+    burial_m : float
+        The pipe's burial below the seabed (m).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n,)`` offsets across the track (m), on the side of the imaged
+        offset; NaN where the range does not reach the pipe's depth.
+    """
+    r, y = (np.asarray(v, dtype=np.float64) for v in (range_m, y_m))
+    c = np.asarray(centre_yz_m, dtype=np.float64).reshape(-1, 2)
+    sb = np.asarray(seabed, dtype=np.float64).reshape(-1, 2)
+    depth = sb[:, 0] + sb[:, 1] * y + burial_m - c[:, 1]
+    across_sq = r ** 2 - depth ** 2
+    side = np.where(y >= c[:, 0], 1.0, -1.0)
+    return np.where(across_sq > 0, c[:, 0] + side * np.sqrt(np.where(across_sq > 0, across_sq, 0.0)), np.nan)
+
+
 def crossing_offset(u, u1, u2) -> np.ndarray:
     """The crossing's offset from the ship (m) of the pipe whose nearest point lies at the signed offset
     ``u`` with derivatives ``u1``, ``u2`` along the track: on the pipe's osculating circle (centre on the

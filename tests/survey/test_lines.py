@@ -353,21 +353,26 @@ def test_a_specular_burials_error_follows_the_scatter_about_its_fit():
 
 def test_a_specular_burials_error_is_its_estimates_spread_when_the_prior_on_k_is_off():
     """A pipe whose echoes read only 0.6 of ``dz`` (turning 0-4 degrees, 900 m out: ``dz`` up to 8.5 m), 9
-    burials scattering by 1.5 m stated as 4.5 m: the prior pulls ``k`` towards 1 and the burial 0.6 m shallow
-    (a bias the standard error does not hold), and the standard error matches the estimates' own spread over
-    2000 draws within 10 % (the prior shrinks, it is not scaled with the data's scatter: scaling the whole
-    covariance gave 26 % more)."""
+    burials scattering by 1.5 m stated as 4.5 m: a prior of spread 0.5 pulls ``k`` towards 1 and the burial
+    0.6 m shallow (a bias the standard error does not hold), and the standard error matches the estimates' own
+    spread over 2000 draws within 10 % (the prior shrinks, it is not scaled with the data's scatter: scaling the
+    whole covariance gave 26 % more).  With the package's tighter prior the misfit of ``k`` enters the
+    residuals' scatter: the standard error errs large, never small."""
     a = np.radians(np.linspace(0, 4, 9))
     y_c, z = -900.0, 226.0
     dz = np.sqrt(z ** 2 + (y_c * np.sin(a) * np.cos(a)) ** 2) - z
     geometry = (np.sin(a), np.zeros((a.size, 2)), np.tile([225.0, 0.0], (a.size, 1)))
     rng = np.random.default_rng(14)
-    fits = [specular_fit(y_c * np.cos(a), 1.0 + 0.6 * dz + rng.normal(0, 1.5, a.size), np.full(a.size, 4.5),
-                         *geometry, k_prior_sigma=SPECULAR_K_SIGMA) for _ in range(2000)]
-    est = np.array([f["burial_m"] for f in fits])
-    err = np.array([f["burial_error_m"] for f in fits])
-    assert np.mean(est) - 1.0 < -0.4
-    assert np.sqrt(np.mean(err ** 2)) == pytest.approx(np.std(est), rel=0.1)
+    burials = [1.0 + 0.6 * dz + rng.normal(0, 1.5, a.size) for _ in range(2000)]
+    for prior in (0.5, SPECULAR_K_SIGMA):
+        fits = [specular_fit(y_c * np.cos(a), b, np.full(a.size, 4.5), *geometry, k_prior_sigma=prior)
+                for b in burials]
+        est = np.array([f["burial_m"] for f in fits])
+        err = np.sqrt(np.mean(np.array([f["burial_error_m"] for f in fits]) ** 2))
+        assert np.mean(est) - 1.0 < -0.4
+        if prior == 0.5:
+            assert err == pytest.approx(np.std(est), rel=0.1)
+        assert err > 0.9 * np.std(est)
 
 
 def test_a_specular_burial_is_fitted_over_the_echoes_whose_nearest_point_is_inside_the_transmit_beam():
@@ -375,8 +380,8 @@ def test_a_specular_burial_is_fitted_over_the_echoes_whose_nearest_point_is_insi
     transmit beam's half width (2.25 degrees at ``R = hypot(y_c, z)``) near 2.4 degrees of heading.  Inside,
     the burials read ``1 + dz`` (closed form); past the edge the beam pulls the echo towards the crossing and
     they read less (``1 + 0.3 dz`` here).  Limited to the beam, the fit gives the burial exactly, as the same
-    fit given only the echoes inside; over all, ``k`` falls to 0.3 and the burial comes 0.33 m deep; with
-    under three inside, all are fitted."""
+    fit given only the echoes inside; over all, ``k`` falls to 0.7 and the burial comes 1.85 m
+    shallow; with under three inside, all are fitted."""
     a = np.radians(np.r_[np.linspace(0, 2.2, 10), np.linspace(2.7, 6.0, 10)])
     y_c, z = -900.0, 226.0
     x = y_c * np.sin(a) * np.cos(a)
@@ -393,7 +398,7 @@ def test_a_specular_burial_is_fitted_over_the_echoes_whose_nearest_point_is_insi
                                *(g[inside] for g in geometry), k_prior_sigma=SPECULAR_K_SIGMA)
     assert limited["burial_error_m"] == pytest.approx(only_inside["burial_error_m"], rel=1e-9)
     every = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA)
-    assert every["burial_m"] > 1.25 and every["k"] < 0.5
+    assert every["burial_m"] < 0.5
     # at 0.3 degrees two echoes are inside (0 and 0.24 degrees off): too few, all are fitted; at 0.5 three are
     two = specular_fit(y_c * np.cos(a), b, sigma, *geometry, k_prior_sigma=SPECULAR_K_SIGMA,
                        max_offplane_rad=math.radians(0.3))

@@ -10,7 +10,7 @@ import pytest
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_products import LineDetections, survey_lines
-from clbeam.survey.specular import fading_fit, fading_floor_db, local_quadratic, specular_crossing
+from clbeam.survey.specular import fading_fit, fading_floor_db, local_quadratic, offsets_at_depth, specular_crossing
 
 SPACING_M = 8.2  # the along-track distance of pings without navigation (LineOptions.nominal_spacing_m)
 
@@ -84,6 +84,51 @@ def test_straight_pipe_crossing_is_the_nearest_distance_over_cos_a():
     np.testing.assert_allclose(specular_crossing(echo, s, np.zeros_like(s), s, 60.0), crossing, atol=1e-6)
 
 
+def specular_image(crossing_m, heading_rad, pipe_depth_m):
+    """A straight pipe's specular echo as imaged from a grid centre at the origin (depth down): the slant
+    range of its nearest point, the echo's offset across (cone angle kept: ``h cos a``, ``h = D cos a``),
+    its imaged depth, and ``h``."""
+    nearest = np.asarray(crossing_m, dtype=np.float64) * np.cos(heading_rad)
+    r = np.hypot(nearest, pipe_depth_m)
+    y = nearest * np.cos(heading_rad)
+    return r, y, np.sqrt(r ** 2 - y ** 2), nearest
+
+
+@pytest.mark.parametrize("heading_deg", [3.0, 10.2, 20.0])
+def test_echoes_moved_to_the_pipes_depth_by_range_lie_at_its_nearest_distance(heading_deg):
+    """An exposed smooth pipe 231 m down images ``dz`` deeper and ``h (1 - cos a)`` nearer than its nearest
+    point; moved along the arc to its depth it lies at ``h`` whatever angle noise slid it along the arc,
+    and the crossing follows as ``h / cos a``."""
+    rng = np.random.default_rng(7)
+    a = np.radians(heading_deg)
+    s = np.arange(0.0, 320.0, SPACING_M)
+    crossing = 280.0 + s * np.tan(a)
+    r, y, z, nearest = specular_image(crossing, a, 231.0)
+    slide = rng.normal(0.0, np.radians(0.3), s.size)  # the imaged angle's noise, along the arc
+    theta = np.arctan2(y, z) + slide
+    y_img = r * np.sin(theta)
+    seabed = np.tile([230.0, 0.0], (s.size, 1))
+    centre = np.zeros((s.size, 2))
+    moved = offsets_at_depth(r, y_img, centre, seabed, 1.0)
+    np.testing.assert_allclose(moved, nearest, atol=1e-6)
+    assert np.max(np.abs(y_img - nearest)) > 0.5  # the image itself is off
+    np.testing.assert_allclose(specular_crossing(moved, s, centre[:, 0], s, 60.0), crossing, atol=1e-6)
+    # to port, and a range that cannot reach the depth
+    np.testing.assert_allclose(offsets_at_depth(r, -y_img, centre, seabed, 1.0), -nearest, atol=1e-6)
+    assert np.isnan(offsets_at_depth([200.0], [10.0], [[0.0, 0.0]], [[230.0, 0.0]], 1.0)).all()
+
+
+def test_echoes_moved_by_range_against_a_sloping_seabed_and_a_grid_centre_off_the_track():
+    """The pipe's depth is the seabed's under the echo plus the burial, from a grid centre that is not the
+    origin: the offset is the centre's plus the horizontal leg of the slant range."""
+    centre = np.array([[1.5, 4.0], [-0.8, 3.0]])
+    seabed = np.array([[230.0, 0.02], [228.0, -0.01]])
+    across = np.array([300.0, -450.0])  # the nearest points' offsets from the track
+    depth = seabed[:, 0] + seabed[:, 1] * across + 2.0
+    r = np.hypot(across - centre[:, 0], depth - centre[:, 1])
+    np.testing.assert_allclose(offsets_at_depth(r, across, centre, seabed, 2.0), across, atol=1e-9)
+
+
 def test_fading_fit_recovers_the_fall_and_finds_none_in_a_diffuse_echo():
     rng = np.random.default_rng(2)
     sin_a = np.linspace(0.0, 0.1, 30)
@@ -114,28 +159,32 @@ def _survey(kind: str, seed: int = 3):
     s = (np.arange(n) - 5) * SPACING_M
     crossing, nearest = circle_pipe(s, 920.0, 1900.0, bends_away=True)
     fade_db = {"smooth": 2600.0, "rough": 0.0, "rough, oblique": 400.0}[kind]
-    seabed = np.tile([230.0, 0.0], (n, 1))
     if kind == "rough, oblique":
         crossing = 920.0 + s * np.tan(np.radians(3.0)) + s ** 2 / (2 * 1900.0)
     echo = nearest if kind == "smooth" else crossing
     slope = np.gradient(echo, s)
-    z = 231.0
-    level = -30 - 40 * np.log10(np.hypot(echo, z)) - fade_db * slope ** 2
+    level = -30 - 40 * np.log10(np.hypot(echo, 231.0)) - fade_db * slope ** 2
+    return _lines_in_clutter(rng, echo + rng.normal(0, 0.3, n), np.full(n, 231.0), level), crossing
+
+
+def _lines_in_clutter(rng, echo_y, echo_z, level_db):
+    """The lines of one echo a ping (offsets, depths in m, levels in dB) among six clutter peaks a ping, over a
+    flat seabed 230 m down, pings 8.2 m apart."""
+    n = echo_y.size
     ping, y, depth, cf, inten = [], [], [], [], []
     for k in range(n):
         clutter = rng.uniform(-900, 900, 6)
         ping += [k] * 7
-        y += [echo[k] + rng.normal(0, 0.3)] + list(clutter)
-        depth += [z] + list(230 + rng.uniform(0, 25, 6))
+        y += [echo_y[k]] + list(clutter)
+        depth += [echo_z[k]] + list(230 + rng.uniform(0, 25, 6))
         cf += [0.6] + list(rng.uniform(0.4, 0.6, 6))
-        inten += [level[k] + rng.normal(0, 1.0)] + list(rng.uniform(-110, -90, 6))
+        inten += [level_db[k] + rng.normal(0, 1.0)] + list(rng.uniform(-110, -90, 6))
     det = LineDetections(*(np.asarray(v, dtype=np.float64) for v in (ping, y, depth, cf, inten)))
     det.ping = det.ping.astype(np.int64)
     nav = SurveyNavigation(n, None)
     imaged = np.ones(n, dtype=bool)
     nav.finish(imaged)
-    lines = survey_lines(det, seabed, np.zeros((n, 2)), imaged, nav, LineOptions())
-    return lines, crossing
+    return survey_lines(det, np.tile([230.0, 0.0], (n, 1)), np.zeros((n, 2)), imaged, nav, LineOptions())
 
 
 @pytest.mark.parametrize("kind", ["smooth", "rough", "rough, oblique"])
@@ -322,3 +371,27 @@ def test_of_two_equal_lines_one_above_the_other_the_louder_is_kept(louder_deeper
     lines = survey_lines(det, np.tile([225.0, 0.0], (n, 1)), np.zeros((n, 2)), imaged, nav, LineOptions())
     assert len(lines.rows) == 1
     assert lines.rows[0]["burial_m"] == pytest.approx(2.0 if louder_deeper else 1.0, abs=0.02)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_smooth_exposed_pipe_at_10_degrees_is_moved_to_its_crossings_by_range(seed):
+    """A smooth pipe on a seabed 230 m down, 280-330 m out at 10.2 degrees, imaged where a specular echo
+    lies: ``dz`` (5-9 m) deeper and ``h (1 - cos a)`` nearer than its nearest point, its angle noisy
+    (0.1 degree).  Moved only part of the way along their arcs, the echoes put the path 2.2 m short of the
+    crossing; moved by range to the burial the line reports, its path's error is the one that burial's
+    error sets (``(Z / h) / cos a`` per metre) and under 1 m."""
+    rng = np.random.default_rng(seed)
+    n, a = 36, np.radians(10.2)
+    s = np.arange(n) * SPACING_M
+    crossing = 280.0 + s * np.tan(a)
+    r, y, z, nearest = specular_image(crossing, a, 230.0)
+    theta = np.arctan2(y, z) + rng.normal(0, np.radians(0.1), n)
+    level = -30 - 40 * np.log10(r) - 2600 * (np.gradient(nearest, s) * nearest / r) ** 2
+    lines = _lines_in_clutter(rng, r * np.sin(theta), r * np.cos(theta), level)
+    (row, (pings, path_y)), = [(row, path) for row, path in zip(lines.rows, lines.ping_paths)
+                               if np.any(np.abs(path[1] - crossing[path[0]]) < 30)]
+    assert row["kind"] == "pipeline" and row["specular"] == 1 and pings.size == n
+    error = path_y - crossing[pings]
+    from_burial = -row["burial_m"] * np.mean(230.0 / nearest) / np.cos(a)
+    assert np.sqrt(np.mean(error ** 2)) < 1.0
+    assert abs(np.mean(error) - from_burial) < 0.2
