@@ -105,14 +105,16 @@ def offsets_at_depth(range_m, y_m, centre_yz_m, seabed, burial_m: float) -> np.n
     ping while the depth's error (the line's burial) is one for the whole
     line, so ``u`` changes from ping to ping as smoothly as the pipe does:
     its derivatives along the track are what :func:`specular_crossing`
-    needs.  The seabed is read at the imaged offset (the nearest point's
-    offset across, kept by the imaging's cone angle).
+    needs.  The seabed is read at the echo's offset (imaged, or moved part
+    of the way along its arc: within metres of the nearest point's offset
+    across, which the imaging's cone angle keeps).
 
     Parameters
     ----------
     range_m, y_m : array_like
         ``(n,)`` the echoes' slant ranges from their grid centres and
-        their imaged offsets across the track (m).
+        their offsets across the track (m): these give the side and where
+        the seabed is read.
     centre_yz_m, seabed : array_like
         ``(n, 2)`` grid centres (m) and the pings' seabeds ``(z0, slope)``.
     burial_m : float
