@@ -132,7 +132,7 @@ def offsets_at_depth(range_m, y_m, centre_yz_m, seabed, burial_m: float) -> np.n
     depth = sb[:, 0] + sb[:, 1] * y + burial_m - c[:, 1]
     across_sq = r ** 2 - depth ** 2
     side = np.where(y >= c[:, 0], 1.0, -1.0)
-    return np.where(across_sq > 0, c[:, 0] + side * np.sqrt(np.where(across_sq > 0, across_sq, 0.0)), np.nan)
+    return c[:, 0] + side * np.sqrt(np.where(across_sq > 0, across_sq, np.nan))
 
 
 def crossing_offset(u, u1, u2) -> np.ndarray:
