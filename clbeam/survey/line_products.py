@@ -182,7 +182,8 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     tracks = find_tracks(frame, options, rank=rank)
     level = None if det.intensity_db is None else np.asarray(det.intensity_db, dtype=np.float64)[order]
     described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level), nav, scaled)) for tr in tracks]
-    kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options, level)
+    kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
+                               (rank, level))
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
         row["line"] = len(rows)
@@ -212,41 +213,58 @@ SMOOTH_SEEN_BEAMS = 2.0
 SPECULAR_PASSES = 2
 
 
-def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions, level: np.ndarray | None = None
-                        ) -> list:
-    """The lines less those that shadow a better one, in line order (:func:`_shadows`).  Better: the higher
-    score, and of equal scores (long lines with a detection in every ping reach the same) the higher mean level
-    (``level``, the detections' intensities in dB): the echo, not its range sidelobes (the seabed's nadir echo
-    has peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near 1)."""
+def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions, ranked: tuple) -> list:
+    """The lines less those that shadow a better one, in line order (:func:`_shadows`).  ``ranked``: the
+    :func:`line_ranker` the lines were found with and the detections' intensities (dB, or ``None``).  Better:
+    the higher score, and of equal scores (long lines with a detection in every ping reach the same) the higher
+    mean level: the echo, not its range sidelobes (the seabed's nadir echo has peaks 0.26 and 1.26 m above it,
+    18 and 31 dB down, with CF near 1).  Each line is compared as reported and as its echoes lie
+    (:func:`_faces`): a specular line's detections are not where its moved path is."""
+    rank, level = ranked
     loud = [_mean_level(level, d[0].members) for d in described]
     order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
     gates = [effective_gates(frame, d[0], d[2][1], options)[0] for d in described]
     reach = [_smear_reach(frame, d[0], d[2][1], options) for d in described]
+    faces = [_faces(frame, d, rank) for d in described]
     kept = []
     for i in order:
-        if not any(_shadows(described[i], described[j], 2 * max(gates[i], gates[j]), reach[j], loud[j] - loud[i])
+        if not any(_shadows(faces[i], faces[j], 2 * max(gates[i], gates[j]), reach[j], loud[j] - loud[i])
                    for j in kept):
             kept.append(i)
     return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
 
 
+def _faces(frame: TrackFrame, line: tuple, rank) -> tuple:
+    """A described line's ``(pings, y, burial)`` as reported and, for a specular line, as its echoes lie: the
+    path through its detections (``rank.path``) and their own burial, before the move to the crossings."""
+    tr, row, (pings, y), *_ = line
+    reported = (pings, y, row["burial_m"])
+    if not row["specular"]:
+        return (reported,)
+    echo_burial = line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0]
+    return reported, (pings, rank.path(tr), echo_burial)
+
+
 def _shadows(line: tuple, better: tuple, two_gates: float, reach_m: float, weaker_db: float) -> bool:
-    """Whether ``line`` shadows ``better`` (both :func:`survey_lines`' described tuples): over at least half
-    its pings within ``two_gates`` of it across the track (the wider line's gate, as narrowed for the score,
-    :func:`effective_gates`: a crossing line's smear holds more than one track, while tight lines side by side
-    at a heading are two) and within 3 m in burial (a pulse's tail or a sidelobe of the same pipe); or within
-    ``two_gates`` plus ``reach_m`` (the better line's smear out to :data:`SHADOW_BEAMS`, :func:`_smear_reach`),
-    deeper than it and at least :data:`SHADOW_DB` weaker (``weaker_db``: the better one's mean level less its,
-    dB): the same pipe's stretch seen through a transmit sidelobe, off the plane, so further along its range."""
-    _, row, (pings, y), *_ = line
-    _, other, (p2, y2), *_ = better
-    _, a, b = np.intersect1d(pings, p2, return_indices=True)
-    dist = np.abs(y[a] - y2[b])
-    same_depth = not (abs(row["burial_m"] - other["burial_m"]) > 3.0)
-    if np.count_nonzero(dist <= two_gates) >= 0.5 * pings.size and same_depth:
-        return True
-    deeper = row["burial_m"] >= other["burial_m"]
-    return bool(deeper and weaker_db >= SHADOW_DB and np.count_nonzero(dist <= two_gates + reach_m) >= 0.5 * pings.size)
+    """Whether ``line`` shadows ``better`` (both :func:`_faces`) as reported, or as their echoes lie: over at
+    least half its pings within ``two_gates`` of it across the track (the wider line's gate, as narrowed for
+    the score, :func:`effective_gates`: a crossing line's smear holds more than one track, while tight lines
+    side by side at a heading are two) and within 3 m in burial (a pulse's tail or a sidelobe of the same
+    pipe); or within ``two_gates`` plus ``reach_m`` (the better line's smear out to :data:`SHADOW_BEAMS`,
+    :func:`_smear_reach`), deeper than it and at least :data:`SHADOW_DB` weaker (``weaker_db``: the better one's
+    mean level less its, dB): the same pipe's stretch seen through a transmit sidelobe, off the plane, so
+    further along its range."""
+    pairs = [(line[0], better[0])] + ([(line[-1], better[-1])] if len(line) + len(better) > 2 else [])
+    for (pings, y, burial), (p2, y2, burial2) in pairs:
+        _, a, b = np.intersect1d(pings, p2, return_indices=True)
+        dist = np.abs(y[a] - y2[b])
+        same_depth = not (abs(burial - burial2) > 3.0)
+        if np.count_nonzero(dist <= two_gates) >= 0.5 * pings.size and same_depth:
+            return True
+        deeper = burial >= burial2
+        if deeper and weaker_db >= SHADOW_DB and np.count_nonzero(dist <= two_gates + reach_m) >= 0.5 * pings.size:
+            return True
+    return False
 
 
 def _mean_level(level: np.ndarray | None, members: np.ndarray) -> float:
