@@ -39,6 +39,10 @@ to the world ping by ping.
    Detections are used once.  (Kept seed by seed in the seeds' order,
    a seed that strayed off a crossing pipeline in dense clutter took the
    detections of the seed that followed it: the boulder field's pipeline.)
+   A track that stops where another begins, within ``max_gap_pings`` and
+   the gates (the other's first detections where the first's end would
+   predict them), is joined to it (:func:`_joined`): the first stopped
+   only because the other held the detections that continue it.
 3. **Scores** (:mod:`clbeam.survey.line_score`): how unlikely the line is as
    a chance alignment of the clutter measured around it; and a **kind**
    from its burial and position (:func:`line_kind`).
@@ -197,8 +201,55 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
     heap, _ = _candidates(frame, skipped, used, options, rank)
     tracks += _choose(frame, heap, used, options, rank)
     tracks += _smeared_tracks(frame, tracks, used, options, rank)
+    tracks = _joined(frame, tracks, options)
     tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
     return tracks
+
+
+def _joined(frame: TrackFrame, tracks: list, options: LineOptions) -> list[Track]:
+    """The tracks with each that another continues joined to it, in order of their first ping: a track
+    continues one that ends at most ``max_gap_pings + 1`` pings before it begins when their ends agree
+    (:func:`_continues`); of several, the nearest in offset.  A track grown towards another stops at the first
+    of its detections, which that track holds: a smooth pipe's specular echo drifts in burial as the pipe
+    turns (its echo's extra depth grows with the heading), and two seeds along it grow two such halves."""
+    tracks = sorted(tracks, key=lambda t: t.first)
+    firsts = np.array([t.first for t in tracks], dtype=np.int64)
+    for i, a in enumerate(tracks):
+        if a is None:
+            continue
+        while True:
+            lo, hi = np.searchsorted(firsts, [a.last + 1, a.last + options.max_gap_pings + 2])
+            mismatch = {j: _continues(frame, a, tracks[j], options) for j in range(lo, hi) if tracks[j] is not None}
+            mismatch = {j: m for j, m in mismatch.items() if m is not None}
+            if not mismatch:
+                break
+            j = min(mismatch, key=mismatch.get)
+            a = Track(members=np.r_[a.members, tracks[j].members], first=a.first, last=tracks[j].last)
+            tracks[j] = None
+        tracks[i] = a
+    return [t for t in tracks if t is not None]
+
+
+def _continues(frame: TrackFrame, a: Track, b: Track, options: LineOptions) -> float | None:
+    """Whether track ``b`` continues ``a`` (``a`` ending before ``b`` begins): one end's straight-line fit
+    over its last (first) ``fit_hits`` detections (:func:`_local_fit`, as a growing track predicts its next
+    ping) predicts the other's nearest detection within :func:`across_gate` (either way: a track's end may
+    hold a few stray detections, a pipe's gap bridged through its clutter), and the two ends' burials
+    (:func:`burial_estimate`) agree within ``burial_gate_m``, at least twice their detections' median
+    standard deviation.  Returns the smaller of the two predictions' misses over the gate, or ``None``."""
+    end_a, end_b = a.members[::-1][:options.fit_hits], b.members[:options.fit_hits]
+    misses = []
+    for ends, to in ((end_a, end_b[0]), (end_b, end_a[0])):
+        icpt, slope, _ = _local_fit(frame, ends, options)
+        gate = float(across_gate(frame, np.array([to]), slope, options)[0])
+        misses.append(abs(frame.y[to] - (icpt + slope * frame.s[to])) / gate)
+    b_a = burial_estimate(frame.b[end_a], frame.b_sigma[end_a])
+    b_b = burial_estimate(frame.b[end_b], frame.b_sigma[end_b])
+    sigma = np.r_[frame.b_sigma[end_a], frame.b_sigma[end_b]]
+    sigma = float(np.median(sigma[np.isfinite(sigma)])) if np.isfinite(sigma).any() else 0.0
+    if abs(b_a - b_b) > max(options.burial_gate_m, 2 * sigma) or min(misses) > 1.0:
+        return None
+    return min(misses)
 
 
 def _smeared_tracks(frame: TrackFrame, tracks: list, used: np.ndarray, options: LineOptions, rank) -> list[Track]:

@@ -111,6 +111,44 @@ def test_a_gap_of_several_pings_is_bridged_and_a_longer_one_splits():
         assert len(mine) == n_tracks, gap
 
 
+def _split_tracks(frame, owner, first_line, second_line, split, skip=0):
+    """Two tracks: ``first_line``'s detections before imaged ping ``split`` and ``second_line``'s from
+    ``split + skip`` on."""
+    from clbeam.survey.lines import Track
+
+    def track(idx):
+        k = np.searchsorted(frame.pings, frame.ping[idx])
+        return Track(members=idx, first=int(k[0]), last=int(k[-1]))
+    k = np.searchsorted(frame.pings, frame.ping)
+    return [track(np.flatnonzero((owner == first_line) & (k < split))),
+            track(np.flatnonzero((owner == second_line) & (k >= split + skip)))]
+
+
+@pytest.mark.parametrize("case, joined", [("drifting burial", True), ("5 m across", False),
+                                          ("2 m deeper", False), ("8-ping gap", False)])
+def test_a_track_that_another_continues_is_joined_to_it_and_a_neighbour_is_not(case, joined):
+    """A line at 8 degrees cut in two at ping 30 (as two seeds grow it, each stopped at the detections the
+    other holds): joined when its burial drifts 1.2 m over the 60 pings (a smooth pipe's echo as the pipe
+    turns), each half's end predicting the other's first detection; not when the second half is another
+    line 5 m across or 2 m deeper (outside the gates), nor across a gap of 8 pings (more than the
+    ``max_gap_pings`` a growing track bridges)."""
+    second = {"y0": 300.0, "heading": 8.0}
+    if case == "5 m across":
+        second["y0"] = 305.0
+    if case == "2 m deeper":
+        second["burial"] = 3.0
+    frame, owner = synthetic_frame(60, [{"y0": 300.0, "heading": 8.0, "p": 0.95}, {**second, "p": 0.95}], 0.02,
+                                   seed=4, scatter_m=0.2)
+    frame.b = frame.b + np.where(owner >= 0, 0.02 * frame.ping, 0.0)
+    split_at, skip = 30, (8 if case == "8-ping gap" else 0)
+    tracks = _split_tracks(frame, owner, 0, 1, split_at, skip)
+    out = lines_module._joined(frame, tracks, LineOptions())
+    assert len(out) == (1 if joined else 2)
+    if joined:
+        np.testing.assert_array_equal(out[0].members, np.r_[tracks[0].members, tracks[1].members])
+        assert (out[0].first, out[0].last) == (tracks[0].first, tracks[1].last)
+
+
 def test_parallel_lines_at_different_burials_stay_apart():
     """Two lines 2 m apart across the track, one on the seabed, one 3 m deep:
     the burial gate keeps them two tracks."""
