@@ -39,10 +39,11 @@ to the world ping by ping.
    Detections are used once.  (Kept seed by seed in the seeds' order,
    a seed that strayed off a crossing pipeline in dense clutter took the
    detections of the seed that followed it: the boulder field's pipeline.)
-   A track that stops where another begins, within ``max_gap_pings`` and
+   A line that stops where another begins, within ``max_gap_pings`` and
    the gates (the other's first detections where the first's end would
-   predict them), is joined to it (:func:`_joined`): the first stopped
-   only because the other held the detections that continue it.
+   predict them), is joined to it when both score as lines on their own
+   (:func:`_joined`): the first stopped only because the other held the
+   detections that continue it.
 3. **Scores** (:mod:`clbeam.survey.line_score`): how unlikely the line is as
    a chance alignment of the clutter measured around it; and a **kind**
    from its burial and position (:func:`line_kind`).
@@ -82,6 +83,9 @@ WIDE_SMEAR_LENGTH = 3.0
 #: passes of the gated fit: 2, or for a wide smear 6 (its gate is about the smear, so each pass moves the
 #: window only part of the way to the detections' centre; 12 gave the same paths)
 PATH_PASSES, WIDE_SMEAR_PASSES = 2, 6
+#: a track is joined to one that continues it only when both score at least this on their own (the default
+#: ``min_score``, fixed: at any threshold the lines are then those a build without one counts by score)
+JOIN_MIN_SCORE = 4.0
 
 
 @dataclass
@@ -201,18 +205,21 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
     heap, _ = _candidates(frame, skipped, used, options, rank)
     tracks += _choose(frame, heap, used, options, rank)
     tracks += _smeared_tracks(frame, tracks, used, options, rank)
-    tracks = _joined(frame, tracks, options)
+    tracks = _joined(frame, tracks, options, rank)
     tracks.sort(key=lambda t: (t.first, float(np.mean(frame.y[t.members]))))
     return tracks
 
 
-def _joined(frame: TrackFrame, tracks: list, options: LineOptions) -> list[Track]:
-    """The tracks with each that another continues joined to it, in order of their first ping: a track
-    continues one that ends at most ``max_gap_pings + 1`` pings before it begins when their ends agree
-    (:func:`_continues`); of several, the nearest in offset.  A track grown towards another stops at the first
-    of its detections, which that track holds: a smooth pipe's specular echo drifts in burial as the pipe
-    turns (its echo's extra depth grows with the heading), and two seeds along it grow two such halves."""
-    tracks = sorted(tracks, key=lambda t: t.first)
+def _joined(frame: TrackFrame, tracks: list, options: LineOptions, rank) -> list[Track]:
+    """The tracks with each that another continues joined to it, in order of their first ping: a line (``rank``
+    at least :data:`JOIN_MIN_SCORE`) continues one that ends at most ``max_gap_pings + 1`` pings before it
+    begins when their ends agree (:func:`_continues`); of several, the nearest in offset.  A track grown
+    towards another stops at the first of its detections, which that track holds: a smooth pipe's specular
+    echo drifts in burial as the pipe turns (its echo's extra depth grows with the heading), and two seeds
+    along it grow two such halves.  Both must be lines on their own: two chance tracks of the clutter joined
+    end to end would score as one line what neither is."""
+    weak = [t for t in tracks if rank(t) < JOIN_MIN_SCORE]
+    tracks = sorted([t for t in tracks if rank(t) >= JOIN_MIN_SCORE], key=lambda t: t.first)
     firsts = np.array([t.first for t in tracks], dtype=np.int64)
     for i, a in enumerate(tracks):
         if a is None:
@@ -227,7 +234,7 @@ def _joined(frame: TrackFrame, tracks: list, options: LineOptions) -> list[Track
             a = Track(members=np.r_[a.members, tracks[j].members], first=a.first, last=tracks[j].last)
             tracks[j] = None
         tracks[i] = a
-    return [t for t in tracks if t is not None]
+    return [t for t in tracks if t is not None] + weak
 
 
 def _continues(frame: TrackFrame, a: Track, b: Track, options: LineOptions) -> float | None:

@@ -125,13 +125,15 @@ def _split_tracks(frame, owner, first_line, second_line, split, skip=0):
 
 
 @pytest.mark.parametrize("case, joined", [("drifting burial", True), ("5 m across", False),
-                                          ("2 m deeper", False), ("8-ping gap", False)])
+                                          ("2 m deeper", False), ("8-ping gap", False), ("under the score", False)])
 def test_a_track_that_another_continues_is_joined_to_it_and_a_neighbour_is_not(case, joined):
     """A line at 8 degrees cut in two at ping 30 (as two seeds grow it, each stopped at the detections the
     other holds): joined when its burial drifts 1.2 m over the 60 pings (a smooth pipe's echo as the pipe
     turns), each half's end predicting the other's first detection; not when the second half is another
     line 5 m across or 2 m deeper (outside the gates), nor across a gap of 8 pings (more than the
-    ``max_gap_pings`` a growing track bridges)."""
+    ``max_gap_pings`` a growing track bridges), nor when either half scores under the default ``min_score``
+    of 4, whatever the threshold (two chance tracks joined would make a line of what neither is); those are
+    returned as they were."""
     second = {"y0": 300.0, "heading": 8.0}
     if case == "5 m across":
         second["y0"] = 305.0
@@ -142,8 +144,11 @@ def test_a_track_that_another_continues_is_joined_to_it_and_a_neighbour_is_not(c
     frame.b = frame.b + np.where(owner >= 0, 0.02 * frame.ping, 0.0)
     split_at, skip = 30, (8 if case == "8-ping gap" else 0)
     tracks = _split_tracks(frame, owner, 0, 1, split_at, skip)
-    out = lines_module._joined(frame, tracks, LineOptions())
+    scores = {tracks[0].members.tobytes(): 20.0, tracks[1].members.tobytes(): 3.9 if case == "under the score" else 9.0}
+    out = lines_module._joined(frame, tracks, LineOptions(min_score=-1e9), lambda t: scores.get(t.members.tobytes(), 30.0))
     assert len(out) == (1 if joined else 2)
+    if not joined:
+        assert sorted(t.members.tobytes() for t in out) == sorted(scores)
     if joined:
         np.testing.assert_array_equal(out[0].members, np.r_[tracks[0].members, tracks[1].members])
         assert (out[0].first, out[0].last) == (tracks[0].first, tracks[1].last)
