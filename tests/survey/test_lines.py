@@ -147,11 +147,11 @@ def test_a_track_that_another_continues_is_joined_to_it_and_a_neighbour_is_not(c
     scores = {tracks[0].members.tobytes(): 20.0, tracks[1].members.tobytes(): 3.9 if case == "under the score" else 9.0}
     out = lines_module._joined(frame, tracks, LineOptions(min_score=-1e9), lambda t: scores.get(t.members.tobytes(), 30.0))
     assert len(out) == (1 if joined else 2)
-    if not joined:
-        assert sorted(t.members.tobytes() for t in out) == sorted(scores)
     if joined:
         np.testing.assert_array_equal(out[0].members, np.r_[tracks[0].members, tracks[1].members])
         assert (out[0].first, out[0].last) == (tracks[0].first, tracks[1].last)
+    else:
+        assert sorted(t.members.tobytes() for t in out) == sorted(scores)
 
 
 def test_parallel_lines_at_different_burials_stay_apart():

@@ -411,8 +411,8 @@ def test_a_specular_lines_pulse_tail_along_its_echoes_is_no_second_line():
     """The exposed pipe above with its pulse's tail, 0.5 m further along each echo's ray and 8 dB down (a range
     sidelobe): moved along its arc the tail lies 0.6-0.7 m further out than the echo, inside the line's
     gate, so the two are found as two tracks (or mixed in one).  Compared only with the specular line's path
-    moved to the crossings (2-4 m nearer) the tail's track was a second pipeline line in five of six seeds; the
-    echoes' own path and burial show it a duplicate in every seed.  A track that mixes echo and tail
+    moved to the crossings (5-9 m further out) the tail's track was a second pipeline line in five of six seeds;
+    the echoes' own path and burial show it a duplicate in every seed.  A track that mixes echo and tail
     (seed 5's) is not judged specular: at most one of the six lines may miss the crossing."""
     missed = 0
     for seed in range(6):
