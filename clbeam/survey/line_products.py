@@ -223,41 +223,43 @@ def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions
     rank, level = ranked
     loud = [_mean_level(level, d[0].members) for d in described]
     order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
-    gates = [effective_gates(frame, d[0], d[2][1], options)[0] for d in described]
-    reach = [_smear_reach(frame, d[0], d[2][1], options) for d in described]
-    faces = [_faces(frame, d, rank) for d in described]
+    faces = [_faces(frame, d, rank, options) for d in described]
     kept = []
     for i in order:
-        if not any(_shadows(faces[i], faces[j], 2 * max(gates[i], gates[j]), reach[j], loud[j] - loud[i])
-                   for j in kept):
+        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i]) for j in kept):
             kept.append(i)
     return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
 
 
-def _faces(frame: TrackFrame, line: tuple, rank) -> tuple:
-    """A described line's ``(pings, y, burial)`` as reported and, for a specular line, as its echoes lie: the
-    path through its detections (``rank.path``) and their own burial, before the move to the crossings."""
+def _faces(frame: TrackFrame, line: tuple, rank, options: LineOptions) -> tuple:
+    """A described line's ``(pings, y, burial, gate, reach)`` as reported and, for a specular line, as its
+    echoes lie: the path through its detections (``rank.path``) and their own burial, before the move to the
+    crossings.  ``gate``: the gate across as narrowed for the score about that path (:func:`effective_gates`),
+    ``reach``: its smear's reach (:func:`_smear_reach`), m."""
     tr, row, (pings, y), *_ = line
-    reported = (pings, y, row["burial_m"])
+
+    def face(path_y, burial):
+        return (pings, path_y, burial, effective_gates(frame, tr, path_y, options)[0],
+                _smear_reach(frame, tr, path_y, options))
+    reported = face(y, row["burial_m"])
     if not row["specular"]:
         return (reported,)
-    echo_burial = line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0]
-    return reported, (pings, rank.path(tr), echo_burial)
+    return reported, face(rank.path(tr), line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0])
 
 
-def _shadows(line: tuple, better: tuple, two_gates: float, reach_m: float, weaker_db: float) -> bool:
+def _shadows(line: tuple, better: tuple, weaker_db: float) -> bool:
     """Whether ``line`` shadows ``better`` (both :func:`_faces`) as reported, or as their echoes lie: over at
-    least half its pings within ``two_gates`` of it across the track (the wider line's gate, as narrowed for
-    the score, :func:`effective_gates`: a crossing line's smear holds more than one track, while tight lines
-    side by side at a heading are two) and within 3 m in burial (a pulse's tail or a sidelobe of the same
-    pipe); or within ``two_gates`` plus ``reach_m`` (the better line's smear out to :data:`SHADOW_BEAMS`,
-    :func:`_smear_reach`), deeper than it and at least :data:`SHADOW_DB` weaker (``weaker_db``: the better one's
-    mean level less its, dB): the same pipe's stretch seen through a transmit sidelobe, off the plane, so
-    further along its range."""
+    least half its pings within two gates of it across the track (the wider line's gate, as narrowed for the
+    score, :func:`effective_gates`: a crossing line's smear holds more than one track, while tight lines side
+    by side at a heading are two) and within 3 m in burial (a pulse's tail or a sidelobe of the same pipe); or
+    within two gates plus the better line's reach (its smear out to :data:`SHADOW_BEAMS`, :func:`_smear_reach`),
+    deeper than it and at least :data:`SHADOW_DB` weaker (``weaker_db``: the better one's mean level less its,
+    dB): the same pipe's stretch seen through a transmit sidelobe, off the plane, so further along its range."""
     pairs = [(line[0], better[0])] + ([(line[-1], better[-1])] if len(line) + len(better) > 2 else [])
-    for (pings, y, burial), (p2, y2, burial2) in pairs:
+    for (pings, y, burial, gate, _), (p2, y2, burial2, gate2, reach_m) in pairs:
         _, a, b = np.intersect1d(pings, p2, return_indices=True)
         dist = np.abs(y[a] - y2[b])
+        two_gates = 2 * max(gate, gate2)
         same_depth = not (abs(burial - burial2) > 3.0)
         if np.count_nonzero(dist <= two_gates) >= 0.5 * pings.size and same_depth:
             return True

@@ -211,15 +211,18 @@ def find_tracks(frame: TrackFrame, options: LineOptions, rank=None) -> list[Trac
 
 
 def _joined(frame: TrackFrame, tracks: list, options: LineOptions, rank) -> list[Track]:
-    """The tracks with each that another continues joined to it, in order of their first ping: a line (``rank``
-    at least :data:`JOIN_MIN_SCORE`) continues one that ends at most ``max_gap_pings + 1`` pings before it
-    begins when their ends agree (:func:`_continues`); of several, the nearest in offset.  A track grown
-    towards another stops at the first of its detections, which that track holds: a smooth pipe's specular
-    echo drifts in burial as the pipe turns (its echo's extra depth grows with the heading), and two seeds
-    along it grow two such halves.  Both must be lines on their own: two chance tracks of the clutter joined
-    end to end would score as one line what neither is."""
-    weak = [t for t in tracks if rank(t) < JOIN_MIN_SCORE]
-    tracks = sorted([t for t in tracks if rank(t) >= JOIN_MIN_SCORE], key=lambda t: t.first)
+    """The tracks with each that another continues joined to it (the lines in order of their first ping, then
+    the others).  A line (``rank`` at least :data:`JOIN_MIN_SCORE`) continues one that ends at most
+    ``max_gap_pings + 1`` pings before it begins when their ends agree (:func:`_continues`); of several, the
+    one that begins first, then the nearest in offset (a piece between the two must not be left inside the
+    joined track's extent).  A track grown towards another stops at the first of its detections, which that
+    track holds: a smooth pipe's specular echo drifts in burial as the pipe turns (its echo's extra depth
+    grows with the heading), and two seeds along it grow two such halves.  Both must be lines on their own:
+    two chance tracks of the clutter joined end to end would score as one line what neither is.  With
+    :func:`find_tracks`' default ``rank`` (a track's pings) every track counts as a line."""
+    is_line = [bool(rank(t) >= JOIN_MIN_SCORE) for t in tracks]
+    weak = [t for t, line in zip(tracks, is_line) if not line]
+    tracks = sorted([t for t, line in zip(tracks, is_line) if line], key=lambda t: t.first)
     firsts = np.array([t.first for t in tracks], dtype=np.int64)
     for i, a in enumerate(tracks):
         if a is None:
@@ -230,7 +233,7 @@ def _joined(frame: TrackFrame, tracks: list, options: LineOptions, rank) -> list
             mismatch = {j: m for j, m in mismatch.items() if m is not None}
             if not mismatch:
                 break
-            j = min(mismatch, key=mismatch.get)
+            j = min(mismatch, key=lambda j: (tracks[j].first, mismatch[j]))
             a = Track(members=np.r_[a.members, tracks[j].members], first=a.first, last=tracks[j].last)
             tracks[j] = None
         tracks[i] = a

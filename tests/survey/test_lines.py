@@ -154,6 +154,47 @@ def test_a_track_that_another_continues_is_joined_to_it_and_a_neighbour_is_not(c
         assert sorted(t.members.tobytes() for t in out) == sorted(scores)
 
 
+def _cut(frame, owner, cuts):
+    """Tracks of line 0's detections between the imaged pings ``cuts`` (``[(first, stop), ...]``)."""
+    from clbeam.survey.lines import Track
+
+    k = np.searchsorted(frame.pings, frame.ping)
+    out = []
+    for first, stop in cuts:
+        idx = np.flatnonzero((owner == 0) & (k >= first) & (k < stop))
+        out.append(Track(members=idx, first=int(k[idx[0]]), last=int(k[idx[-1]])))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_joins_bridge_the_gaps_a_growing_track_bridges_and_leave_no_piece_inside(seed):
+    """A line at 8 degrees detected in every ping.  Its burial drifting 1.2 m over 60 pings, cut at ping 30
+    with 6 pings missing it is joined, with 7 (more than ``max_gap_pings``) it is not.  Drifting 1.8 m (the
+    halves' burials 0.9 m apart, their ends' 0.25 m): cut in three (0-9, 10-14, 15-59) it comes out whole,
+    the short middle piece taken first; and with the second half's detections after its first drifting off
+    (2-10 m, as a track that began in a gap's clutter), which its own end then mispredicts, it is joined
+    from the first half's end."""
+    options, rank = LineOptions(), (lambda t: float(t.members.size))
+
+    def line(drift_per_ping):
+        frame, owner = synthetic_frame(60, [{"y0": 300.0, "heading": 8.0, "p": 1.0}], 0.02, seed=seed,
+                                       scatter_m=0.2)
+        frame.b = frame.b + np.where(owner >= 0, drift_per_ping * frame.ping, 0.0)
+        return frame, owner
+    frame, owner = line(0.02)
+    for missing, joined in ((6, True), (7, False)):
+        out = lines_module._joined(frame, _cut(frame, owner, [(0, 30), (30 + missing, 60)]), options, rank)
+        assert len(out) == (1 if joined else 2), missing
+    frame, owner = line(0.03)
+    out = lines_module._joined(frame, _cut(frame, owner, [(0, 10), (10, 15), (15, 60)]), options, rank)
+    assert len(out) == 1
+    np.testing.assert_array_equal(out[0].members, np.flatnonzero(owner == 0))
+    halves = _cut(frame, owner, [(0, 30), (30, 60)])
+    frame.y = frame.y.copy()
+    frame.y[halves[1].members[1:6]] += np.array([2.0, 4.0, 6.0, 8.0, 10.0])
+    assert len(lines_module._joined(frame, halves, options, rank)) == 1
+
+
 def test_parallel_lines_at_different_burials_stay_apart():
     """Two lines 2 m apart across the track, one on the seabed, one 3 m deep:
     the burial gate keeps them two tracks."""
