@@ -111,17 +111,16 @@ def test_a_gap_of_several_pings_is_bridged_and_a_longer_one_splits():
         assert len(mine) == n_tracks, gap
 
 
-def _split_tracks(frame, owner, first_line, second_line, split, skip=0):
-    """Two tracks: ``first_line``'s detections before imaged ping ``split`` and ``second_line``'s from
-    ``split + skip`` on."""
+def _cut(frame, owner, cuts):
+    """Tracks of a line's detections between imaged pings: ``cuts`` ``[(line, first, stop), ...]``."""
     from clbeam.survey.lines import Track
 
-    def track(idx):
-        k = np.searchsorted(frame.pings, frame.ping[idx])
-        return Track(members=idx, first=int(k[0]), last=int(k[-1]))
     k = np.searchsorted(frame.pings, frame.ping)
-    return [track(np.flatnonzero((owner == first_line) & (k < split))),
-            track(np.flatnonzero((owner == second_line) & (k >= split + skip)))]
+    out = []
+    for line, first, stop in cuts:
+        idx = np.flatnonzero((owner == line) & (k >= first) & (k < stop))
+        out.append(Track(members=idx, first=int(k[idx[0]]), last=int(k[idx[-1]])))
+    return out
 
 
 @pytest.mark.parametrize("case, joined", [("drifting burial", True), ("5 m across", False),
@@ -143,7 +142,7 @@ def test_a_track_that_another_continues_is_joined_to_it_and_a_neighbour_is_not(c
                                    seed=4, scatter_m=0.2)
     frame.b = frame.b + np.where(owner >= 0, 0.02 * frame.ping, 0.0)
     split_at, skip = 30, (8 if case == "8-ping gap" else 0)
-    tracks = _split_tracks(frame, owner, 0, 1, split_at, skip)
+    tracks = _cut(frame, owner, [(0, 0, split_at), (1, split_at + skip, 60)])
     scores = {tracks[0].members.tobytes(): 20.0, tracks[1].members.tobytes(): 3.9 if case == "under the score" else 9.0}
     out = lines_module._joined(frame, tracks, LineOptions(min_score=-1e9), lambda t: scores.get(t.members.tobytes(), 30.0))
     assert len(out) == (1 if joined else 2)
@@ -152,18 +151,6 @@ def test_a_track_that_another_continues_is_joined_to_it_and_a_neighbour_is_not(c
         assert (out[0].first, out[0].last) == (tracks[0].first, tracks[1].last)
     else:
         assert sorted(t.members.tobytes() for t in out) == sorted(scores)
-
-
-def _cut(frame, owner, cuts):
-    """Tracks of line 0's detections between the imaged pings ``cuts`` (``[(first, stop), ...]``)."""
-    from clbeam.survey.lines import Track
-
-    k = np.searchsorted(frame.pings, frame.ping)
-    out = []
-    for first, stop in cuts:
-        idx = np.flatnonzero((owner == 0) & (k >= first) & (k < stop))
-        out.append(Track(members=idx, first=int(k[idx[0]]), last=int(k[idx[-1]])))
-    return out
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -183,13 +170,13 @@ def test_joins_bridge_the_gaps_a_growing_track_bridges_and_leave_no_piece_inside
         return frame, owner
     frame, owner = line(0.02)
     for missing, joined in ((6, True), (7, False)):
-        out = lines_module._joined(frame, _cut(frame, owner, [(0, 30), (30 + missing, 60)]), options, rank)
+        out = lines_module._joined(frame, _cut(frame, owner, [(0, 0, 30), (0, 30 + missing, 60)]), options, rank)
         assert len(out) == (1 if joined else 2), missing
     frame, owner = line(0.03)
-    out = lines_module._joined(frame, _cut(frame, owner, [(0, 10), (10, 15), (15, 60)]), options, rank)
+    out = lines_module._joined(frame, _cut(frame, owner, [(0, 0, 10), (0, 10, 15), (0, 15, 60)]), options, rank)
     assert len(out) == 1
     np.testing.assert_array_equal(out[0].members, np.flatnonzero(owner == 0))
-    halves = _cut(frame, owner, [(0, 30), (30, 60)])
+    halves = _cut(frame, owner, [(0, 0, 30), (0, 30, 60)])
     frame.y = frame.y.copy()
     frame.y[halves[1].members[1:6]] += np.array([2.0, 4.0, 6.0, 8.0, 10.0])
     assert len(lines_module._joined(frame, halves, options, rank)) == 1
