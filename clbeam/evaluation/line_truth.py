@@ -22,11 +22,12 @@ the nearer of the two.
 * **seen above chance**: whether the target's detectable pings are more
   than the clutter gives any place: the same count at copies of the target
   beyond its places across the track (:data:`CHANCE_OFFSETS_M` beyond the
-  span of its crossing and its image) sets the chance rate
-  of a ping, and the target is seen when its count is improbable under it
-  (binomial tail below :data:`SEEN_P_VALUE`).  In dense clutter a pipe the
-  imaging does not show still has detections within ``match_m`` in most
-  pings, and its detectable pings are mostly the clutter's; where the
+  span of its crossing and its image) sets the chance rate of a ping, and
+  the target is seen when its count at one of its places is improbable
+  under it (binomial tail below half :data:`SEEN_P_VALUE`: each place is a
+  copy's one window, where the pings near either place would take two).
+  In dense clutter a pipe the imaging does not show still has detections
+  within ``match_m`` in most pings, and its detectable pings are mostly the clutter's; where the
   clutter is that dense a pipe that is seen can fail the test too (its
   line found by its continuity), so the test names targets, it does not
   drop them;
@@ -171,7 +172,7 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
     for t, name in enumerate(truth.names):
         hit = truth.distance(det_ping, det_y, t) <= match_m
         detectable = np.unique(det_ping[hit])
-        chance, seen = _above_chance(truth, det_ping, det_y, t, detectable.size, match_m)
+        chance, seen = _above_chance(truth, det_ping, det_y, t, match_m)
         cover = {k: np.intersect1d(near[k, t], detectable).size for k in pipes}
         best = max(cover, key=cover.get) if cover and max(cover.values()) > 0 else -1
         frags = sum(near[k, t].size >= 3 for k in pipes)
@@ -194,28 +195,30 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
                   "track_km": float(track_km)}
 
 
-def _above_chance(truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, target: int, count: int,
+def _above_chance(truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, target: int,
                   match_m: float) -> tuple[float, bool]:
-    """The mean count of pings with a detection within ``match_m`` of the target's copies, and whether
-    ``count`` (the target's own) is improbable under that rate: a one-sided binomial tail over the pings the
-    target crosses below :data:`SEEN_P_VALUE`.
+    """The mean count of pings with a detection within ``match_m`` of the target's copies, and whether the
+    target's own count at one of its two places (its crossing and its specular image, ``y sin^2 a`` apart for
+    a pipe at ``a`` to the track) is improbable under that rate: a one-sided binomial tail over the pings the
+    target crosses below half :data:`SEEN_P_VALUE` (two places tested).
 
-    The copies lie :data:`CHANCE_OFFSETS_M` beyond the span of the target's two places in each ping (its
-    crossing and its specular image, ``y sin^2 a`` apart for a pipe at ``a`` to the track), so that neither
-    its echoes nor the arc between them fall in a copy's window."""
+    The copies lie :data:`CHANCE_OFFSETS_M` beyond the span of the two places, so that neither the target's
+    echoes nor the arc between them fall in a copy's window.  Each place is tested on its own, as a copy's
+    single window is: the pings with a detection near either place would offer the clutter two windows
+    against the copy's one (in dense clutter, nearly twice the chance)."""
     y, image = truth.y[:, target], truth.image_y[:, target] if truth.image_y is not None else truth.y[:, target]
     lo, hi = np.fmin(y, image), np.fmax(y, image)
     crossing = int(np.count_nonzero(np.isfinite(lo)))
     if crossing == 0:
         return math.nan, False
     at = np.clip(det_ping, 0, y.size - 1)
-    copies = []
-    for shift in CHANCE_OFFSETS_M:
-        centre = (hi + shift) if shift > 0 else (lo + shift)
-        copies.append(np.unique(det_ping[np.abs(det_y - centre[at]) <= match_m]).size)
-    chance = float(np.mean(copies))
+
+    def pings_near(centre: np.ndarray) -> int:
+        return np.unique(det_ping[np.abs(det_y - centre[at]) <= match_m]).size
+    chance = float(np.mean([pings_near(hi + shift if shift > 0 else lo + shift) for shift in CHANCE_OFFSETS_M]))
     rate = min(max(chance, 0.5) / crossing, 1.0)  # half a ping at least: no copy hit is no proof of a zero rate
-    return chance, bool(binom.sf(min(count, crossing) - 1, crossing, rate) < SEEN_P_VALUE)
+    own = max(pings_near(y), pings_near(image))
+    return chance, bool(binom.sf(min(own, crossing) - 1, crossing, rate) < SEEN_P_VALUE / 2)
 
 
 def score_survey(products, input_paths: list, *, match_m: float = MATCH_M) -> tuple[list, dict] | None:
