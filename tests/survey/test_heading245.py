@@ -1,0 +1,77 @@
+"""A survey line none of the line search's steps were chosen on, as a user runs it: the built-in scene
+``heading245`` (180 m of mud over a horizon 20 m down, heading 245 degrees, roll 3 degrees, heave 0.6 m; S1
+smooth at 8 degrees to the track, S2 smooth 2 m deep at -4 degrees curving 10 degrees/km, P3 rough at 25
+degrees, a row of five boulders along the track), simulated over three noise seeds and surveyed as
+``clbeam survey IN -o OUT --max-range 650 --seabed-band 5 40``, its lines scored against the simulator's truth
+(:func:`clbeam.evaluation.line_truth.score_survey`) at the targets of the lines' validation: one line over 90 %
+of a pipe's detectable pings, position RMS within 0.5 m, burial within 0.5 m, no false ``pipeline`` line (the
+boulder row among them: a row of point targets is no line target)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from clbeam.cli.main import build_parser
+from clbeam.cli.survey import options_from_survey_args
+from clbeam.evaluation.line_truth import score_survey
+from clbeam.io.pingwrite import write_ping_file
+from clbeam.sim import load_scene, simulate
+from clbeam.survey import run_survey, scan_inputs
+
+SEEDS = (0, 1, 2)
+#: the lines' validation targets (bench/lines_eval.py)
+ON_LINE, POSITION_M, BURIAL_M = 0.9, 0.5, 0.5
+
+
+@pytest.fixture(scope="module")
+def surveys(tmp_path_factory):
+    """Per seed: the truth's rows per pipeline and the false-line summary."""
+    work = tmp_path_factory.mktemp("heading245")
+    out = []
+    for seed in SEEDS:
+        nc = work / f"heading245_{seed}.nc"
+        write_ping_file(simulate(load_scene("heading245"), seed=seed), nc)
+        args = build_parser().parse_args(["survey", str(nc), "-o", str(work / f"heading245_{seed}.zarr"),
+                                          "--max-range", "650", "--seabed-band", "5", "40", "--quiet"])
+        scan = scan_inputs(args.inputs)
+        res = run_survey(scan, args.output, options_from_survey_args(args, scan))
+        rows, summary = score_survey(res.products, [nc])
+        out.append(({r["target"]: r for r in rows}, summary))
+    return out
+
+
+def test_every_pipeline_is_one_line_and_no_line_is_false(surveys):
+    """Every pipe, every seed: seen above chance in at least 30 of the 40 pings, one line over at least 90 % of
+    its detectable pings, no second line along it, within 1 m RMS of where it crosses each ping's plane (or of
+    its specular image); and no ``pipeline`` line near no pipe, the boulder row's included."""
+    for rows, summary in surveys:
+        assert summary["false_lines"] == 0
+        for name in ("S1", "S2", "P3"):
+            r = rows[name]
+            assert r["seen"] and r["detectable_pings"] >= 30, name
+            assert r["on_line_fraction"] >= ON_LINE and r["fragments"] == 1, name
+            assert r["position_rms_m"] <= 2 * POSITION_M, name
+
+
+def test_the_rough_pipe_reads_its_burial_within_half_a_metre(surveys):
+    """P3 (rough, 1 m deep, 25 degrees to the track: its echo comes from where it crosses the plane) within 0.5 m
+    of its burial in every seed."""
+    errors = np.array([rows["P3"]["burial_error_m"] for rows, _ in surveys])
+    assert np.all(np.abs(errors) <= BURIAL_M), errors
+
+
+@pytest.mark.xfail(strict=True, reason="open: S1, smooth at 8 degrees with its nearest point 6 degrees off the "
+                                       "ping's plane, is read as rough in two seeds of three, its specular echo's "
+                                       "2.8 m of extra depth kept (0.51 m RMS off in one); S2 reads -0.59 m in one")
+def test_positions_and_burials_meet_the_validation_targets(surveys):
+    """The validation targets over the three pipes and three seeds: position RMS within 0.5 m for every one,
+    burial within 0.5 m for at least 90 % (all nine), and within two reported standard errors for at least
+    eight of the nine (95 % nominal)."""
+    names = ("S1", "S2", "P3")
+    position = np.array([[rows[n]["position_rms_m"] for n in names] for rows, _ in surveys])
+    errors = np.array([[rows[n]["burial_error_m"] for n in names] for rows, _ in surveys])
+    se = np.array([[rows[n]["burial_se_m"] for n in names] for rows, _ in surveys])
+    assert np.all(position <= POSITION_M), position
+    assert np.mean(np.abs(errors) <= BURIAL_M) >= 0.9, errors
+    assert np.count_nonzero(np.abs(errors) <= 2 * se) >= 8, (errors, se)
