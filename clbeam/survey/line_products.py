@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LINE_KINDS re-exported)
 from clbeam.survey.burial import ARC_SIGMA_RAD, SEABED_SE_M, SPECULAR_K_SIGMA, arc_constrained, specular_fit
+from clbeam.survey.edges import edges_from_nearest_point
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
@@ -51,6 +53,13 @@ class LineDetections:
         :func:`clbeam.survey.burial.smear_deepening_m`): a diffuse line at a
         heading is raised by its mean (:func:`diffuse_shift`); ``None``: no
         such correction.
+    edge_probe : callable or None
+        ``edge_probe(index) -> u``: the direction cosine off the ping's plane
+        that the echoes of detections ``index`` came from, read from their two
+        edges (:class:`clbeam.survey.edges.EdgeProbe`; NaN: none seen); with
+        it a line the other tests leave undecided is taken as a smooth pipe's
+        specular echo when its echoes come from its nearest point
+        (:func:`_edges_from_nearest_point`).
     """
 
     ping: np.ndarray
@@ -60,6 +69,7 @@ class LineDetections:
     intensity_db: np.ndarray | None = None
     slide_rad: np.ndarray | None = None
     smear_m: np.ndarray | None = None
+    edge_probe: Callable | None = None
 
 
 @dataclass
@@ -181,7 +191,9 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     rank = line_ranker(frame, options)
     tracks = find_tracks(frame, options, rank=rank)
     level = None if det.intensity_db is None else np.asarray(det.intensity_db, dtype=np.float64)[order]
-    described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level), nav, scaled)) for tr in tracks]
+    probe = None if det.edge_probe is None else (lambda members: det.edge_probe(order[members]))
+    described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level, probe), nav, scaled))
+                 for tr in tracks]
     kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
                                (rank, level))
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
@@ -324,14 +336,16 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
               scaled: bool) -> tuple:
     """One line's row, ``(pings, y)``, path in the association frame, and ``[longitude, latitude]`` path (``None``
     without navigation); ``rank``: :func:`line_ranker`'s scorer; ``pings_info``: the pings' seabeds and grid
-    centres, the detections' levels (or ``None``)."""
-    sb, centre_yz, level = pings_info
+    centres, the detections' levels (or ``None``) and the edge probe (or ``None``, :class:`LineDetections`)."""
+    sb, centre_yz, level, probe = pings_info
     m = tr.members
     path_y = rank.path(tr)
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = rank(tr)
-    spec = _specular(frame, tr, path_y, sb, centre_yz, level, options)
+    # the probe images the channels again: only for lines that are kept
+    spec = _specular(frame, tr, path_y, sb, centre_yz, (level, probe if score >= options.min_score else None),
+                     options)
     measured = (burial, burial_se)  # what the kind is judged by unless the line is specular
     if spec is not None and spec["path_y"] is None:
         # diffuse_shift: undecided, a buried line's burial halfway (a smooth pipe's echo never lies above the
@@ -407,13 +421,16 @@ def _score(frame: TrackFrame, tr: Track, path_y: np.ndarray, burial: float, opti
 
 
 def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray,
-              level: np.ndarray | None, options: LineOptions) -> dict | None:
+              echoes: tuple, options: LineOptions) -> dict | None:
     """The line as a smooth pipe's specular echo, moved to where the pipe crosses each ping's plane
     (:func:`clbeam.survey.specular.specular_crossing`), when its burials say so (:func:`clbeam.survey.burial.
-    specular_fit`: ``k`` within two standard errors of 1 and more than two from 0) or its echoes fade as a
-    specular echo's over the pings with a seabed (:func:`_fades`) and the burials do not say otherwise (``k``
-    more than three standard errors below 1); else ``None``.  Its burial, and its echoes moved to the pipe's
-    depth that the crossings are found from, are then :func:`_specular_burial`'s."""
+    specular_fit`: ``k`` within two standard errors of 1 and more than two from 0), or the burials do not say
+    otherwise (``k`` more than three standard errors below 1) and its echoes fade as a specular echo's over the
+    pings with a seabed (:func:`_fades`) or come from the pipe's nearest point, off the plane
+    (:func:`_edges_from_nearest_point`); else ``None``.  Its burial, and its echoes moved to the pipe's depth
+    that the crossings are found from, are then :func:`_specular_burial`'s.  ``echoes``: the detections'
+    levels (dB, or ``None``) and the edge probe (or ``None``)."""
+    level, probe = echoes
     m = tr.members
     ext = frame.pings[tr.first:tr.last + 1]
     s_ext = frame.ping_s[tr.first:tr.last + 1]
@@ -431,11 +448,26 @@ def _specular(frame: TrackFrame, tr: Track, path_y: np.ndarray, sb: np.ndarray, 
     # the fading alone decides only over pings with a seabed: elsewhere the echoes were not moved along their arcs
     moved = np.isfinite(frame.b[m])
     fades = _fades(frame, m[moved], slope[k[moved]], centre_yz[g[moved], 0], level, options)
-    if moved.sum() < 3 or not (by_burial or (fades and not not_specular)):
+    if moved.sum() < 3 or not (by_burial or (not not_specular and (
+            fades or _edges_from_nearest_point(frame, m[moved], slope[k[moved]], centre_yz[g[moved], 0], probe)))):
         return diffuse_shift(fit, frame.smear[m], not_specular, options)
     fit, y_echo = _specular_burial(frame, m, slope[k], centre_yz[g], sb[g], options)
     y_c = specular_crossing(y_echo[moved], frame.s[m][moved], centre_yz[g[moved], 0], s_ext, options.fit_length_m)
     return {"path_y": y_c, "burial_m": fit["burial_m"], "burial_error_m": fit["burial_error_m"]}
+
+
+def _edges_from_nearest_point(frame: TrackFrame, members: np.ndarray, slope: np.ndarray, centre_y: np.ndarray,
+                              probe) -> bool:
+    """Whether the line's echoes came from its nearest point off the plane, as a smooth pipe's do
+    (:func:`clbeam.survey.edges.edges_from_nearest_point` on the direction cosines ``probe`` reads from their
+    edges against the nearest point's, ``(h / R) sin a`` at each detection's offset ``h`` from its grid centre,
+    slant range ``R`` and the path's heading ``a``); ``False`` without a probe."""
+    if probe is None or frame.r is None or members.size == 0:
+        return False
+    r = frame.r[members]
+    h_over_r = np.abs(frame.y[members] - centre_y) / np.where(r > 0, r, np.nan)
+    u_nearest = np.abs(h_over_r * slope / np.sqrt(1 + slope ** 2))
+    return edges_from_nearest_point(lambda pick: probe(members[pick]), u_nearest)
 
 
 def _specular_burial(frame: TrackFrame, m: np.ndarray, slope: np.ndarray, centre_yz: np.ndarray, sb: np.ndarray,

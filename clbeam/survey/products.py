@@ -40,11 +40,13 @@ from clbeam.io.survey_store import (
     iter_ledger_records,
     ledger_names,
     product_paths,
+    read_root_attrs,
     store_ping_count,
     update_store,
 )
 from clbeam.survey.association import associate, describe_objects
 from clbeam.survey.burial import offplane_deepening_m, peak_slide_rad, receive_beam_width_rad, seabed_line, smear_deepening_m
+from clbeam.survey.edges import EdgeProbe
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.inputs import one_line
 from clbeam.survey.line_products import LineDetections, SurveyLines, line_rows, survey_lines, track_distance_m
@@ -138,7 +140,7 @@ class _FirstPass:
     seabed: np.ndarray = None
 
 
-def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyProducts:
+def finalize_survey(output, options: SurveyOptions, *, failures=(), inputs=None) -> SurveyProducts:
     """Build the survey products from the ledger of ``output``.
 
     Reads the ledger twice, one ping at a time: first the navigation and the
@@ -159,6 +161,9 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
         The run's options (map threshold and association rule, speed, grid).
     failures : sequence of Failure
         Inputs and pings not imaged (store attribute ``failures``).
+    inputs : sequence of path-like, optional
+        The readable input files in survey order (the store's ``input_files``): with them the lines their
+        other tests leave undecided are asked where their echoes came from (:mod:`clbeam.survey.edges`).
 
     Returns
     -------
@@ -174,8 +179,9 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
     slide = peak_slide_rad(det.snr_db, _receive_beam_rad(first), _angle_step_rad(options.grid))
     centre = np.stack([first.per_ping["centre_y"], first.per_ping["centre_z"]], axis=1)
     smear = _smear_depth(det, centre, math.radians(options.lines.beam_width_deg))
-    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db, slide, smear), first.seabed,
-                         centre, first.per_ping["imaged"], nav, options.lines)
+    probe = _edge_probe(output, inputs, first, det, centre, options)
+    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db, slide, smear, probe),
+                         first.seabed, centre, first.per_ping["imaged"], nav, options.lines)
     row_labels = {c: np.full(first.n_rows, -1, dtype=np.int64) for c in ("object", "line")}
     row_labels["object"][det.row] = det.labels
     row_labels["line"][det.row] = lines.labels
@@ -196,6 +202,28 @@ def finalize_survey(output, options: SurveyOptions, *, failures=()) -> SurveyPro
                           files=files, track_km=track_length_km(nav, first.per_ping["imaged"]),
                           detections={"ping": det.ping, "y_m": det.y, "z_m": det.z, "file_index": first.per_ping["file_index"],
                                       "file_ping": first.per_ping["file_ping"]})
+
+
+def _edge_probe(output: Path, inputs, first: _FirstPass, det: _Detections, centre_yz: np.ndarray,
+                options: SurveyOptions):
+    """``probe(detections) -> u`` (:class:`clbeam.survey.edges.EdgeProbe` at the detections' ranges and angles from
+    their grid centres), or ``None``: no inputs given, inputs other than the store's, or no pulse band (the
+    column's length ``L`` is the band centre's wavelength over the lines' ``beam_width_deg``)."""
+    band = first.sonar.get("pulse_band_hz")
+    if inputs is None or not band:
+        return None
+    names = json.loads(read_root_attrs(output).get("input_files", "[]"))
+    if names != [Path(p).name for p in inputs]:
+        log.warning("lines: the inputs are not the store's %s; undecided lines are not probed", names)
+        return None
+    c = first.per_ping["sound_speed"]
+    c = float(np.nanmedian(c)) if np.isfinite(c).any() else 1500.0
+    column_m = c / (0.5 * (band[0] + band[1])) / math.radians(options.lines.beam_width_deg)
+    probe = EdgeProbe(inputs, first.per_ping["file_index"], first.per_ping["file_ping"], column_m, grid=options.grid,
+                      backend=options.backend, device=options.device)
+    dy, dz = det.y - centre_yz[det.ping, 0], det.z - centre_yz[det.ping, 1]
+    range_m, angle_deg = np.hypot(dy, dz), np.degrees(np.arctan2(dy, dz))
+    return lambda index: probe(det.ping[index], range_m[index], angle_deg[index])
 
 
 def track_length_km(nav: SurveyNavigation, imaged: np.ndarray) -> float:

@@ -395,7 +395,7 @@ def run_survey(inputs, output, options: SurveyOptions, *, workers: int | None = 
         timings = {k: sum((r.timings_s[k] for r in results), 0.0) for k in STAGES}
         result = SurveyResult(output, scan.n_pings, len(done), n_imaged, failures, wall, timings, workers=n_workers,
                               n_timed=sum(len(r.done) for r in results))
-        result.products = finalize_survey(output, options, failures=failures)
+        result.products = finalize_survey(output, options, failures=failures, inputs=[f.path for f in scan.files])
         return result
     finally:
         lock.release()

@@ -54,16 +54,19 @@ def test_every_pipeline_is_one_line_and_no_line_is_false(surveys):
             assert r["position_rms_m"] <= 2 * POSITION_M, name
 
 
-def test_the_rough_pipe_reads_its_burial_within_half_a_metre(surveys):
+def test_the_rough_pipe_and_the_smooth_one_at_8_degrees_read_their_burials(surveys):
     """P3 (rough, 1 m deep, 25 degrees to the track: its echo comes from where it crosses the plane) within 0.5 m
-    of its burial in every seed."""
-    errors = np.array([rows["P3"]["burial_error_m"] for rows, _ in surveys])
-    assert np.all(np.abs(errors) <= BURIAL_M), errors
+    of its burial in every seed; S1 (smooth, 0.5 m deep, 8 degrees: its echo comes from its nearest point, 6
+    degrees off the plane, 2.8 m deeper) within 1 m in every seed, the extra depth taken off (its echoes' two
+    edges, clbeam.survey.edges)."""
+    p3 = np.array([rows["P3"]["burial_error_m"] for rows, _ in surveys])
+    s1 = np.array([rows["S1"]["burial_error_m"] for rows, _ in surveys])
+    assert np.all(np.abs(p3) <= BURIAL_M), p3
+    assert np.all(np.abs(s1) <= 2 * BURIAL_M), s1
 
 
-@pytest.mark.xfail(strict=True, reason="open: S1, smooth at 8 degrees with its nearest point 6 degrees off the "
-                                       "ping's plane, is read as rough in two seeds of three, its specular echo's "
-                                       "2.8 m of extra depth kept (0.51 m RMS off in one); S2 reads -0.59 m in one")
+@pytest.mark.xfail(strict=True, reason="open: in seed 0 S1 reads +0.54 m and S2 -0.59 m in burial, beyond 0.5 m "
+                                       "and two standard errors; P3 lies 0.501 m RMS off in seed 2")
 def test_positions_and_burials_meet_the_validation_targets(surveys):
     """The validation targets over the three pipes and three seeds: position RMS within 0.5 m for every one,
     burial within 0.5 m for at least 90 % (all nine), and within two reported standard errors for at least
