@@ -17,6 +17,7 @@ and 0.97 times ``L u / 2`` (the pulse's own sidelobes push close edges apart).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 
@@ -73,16 +74,21 @@ class EdgeProbe:
         The transmit column's length ``L`` along the track (m).
     grid : PolarGrid
         The survey's grid (its centre and, through a sound-speed profile, its travel-time tables).
+    imaging : ImagingOptions, optional
+        The survey's (sound speed, profile, apodization, channels): the profile is taken with them, its samples
+        interpolated with the cubic and without beams.
     backend, device : str, optional
         The OpenCL backend and device (the survey's).
     """
 
     def __init__(self, paths, file_index: np.ndarray, file_ping: np.ndarray, column_length_m: float, *,
-                 grid: PolarGrid, backend: str | None = None, device: str | None = None):
+                 grid: PolarGrid, imaging: ImagingOptions | None = None, backend: str | None = None,
+                 device: str | None = None):
         self.paths = [str(p) for p in paths]
         self.file_index, self.file_ping = np.asarray(file_index), np.asarray(file_ping)
         self.column_length_m = float(column_length_m)
         self.grid, self.backend, self.device = grid, backend, device
+        self.imaging = dataclasses.replace(imaging or ImagingOptions(), interp="cubic", beams=None, upsample=None)
         self._files: dict = {}
         self._imager = None
 
@@ -110,8 +116,7 @@ class EdgeProbe:
             log.warning("edge probe: ping %d of %s not read (%s)", int(self.file_ping[ping]), self.paths[index], exc)
             return None
         if self._imager is None:  # one engine for every profile (cubic samples: -35 dB, no beams)
-            self._imager = Imager(self.grid, ImagingOptions(interp="cubic", beams=None), backend=self.backend,
-                                  device=self.device)
+            self._imager = Imager(self.grid, self.imaging, backend=self.backend, device=self.device)
         ranges = range_m + np.arange(-PROFILE_HALF_M, PROFILE_HALF_M + PROFILE_STEP_M / 2, PROFILE_STEP_M)
         angles = angle_deg + np.arange(-PROFILE_HALF_DEG, PROFILE_HALF_DEG + PROFILE_STEP_DEG / 2, PROFILE_STEP_DEG)
         r, a = np.meshgrid(ranges, angles)

@@ -220,7 +220,7 @@ def _edge_probe(output: Path, inputs, first: _FirstPass, det: _Detections, centr
     c = float(np.nanmedian(c)) if np.isfinite(c).any() else 1500.0
     column_m = c / (0.5 * (band[0] + band[1])) / math.radians(options.lines.beam_width_deg)
     probe = EdgeProbe(inputs, first.per_ping["file_index"], first.per_ping["file_ping"], column_m, grid=options.grid,
-                      backend=options.backend, device=options.device)
+                      imaging=options.imaging, backend=options.backend, device=options.device)
     dy, dz = det.y - centre_yz[det.ping, 0], det.z - centre_yz[det.ping, 1]
     range_m, angle_deg = np.hypot(dy, dz), np.degrees(np.arctan2(dy, dz))
     return lambda index: probe(det.ping[index], range_m[index], angle_deg[index])
