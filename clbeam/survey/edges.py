@@ -9,8 +9,8 @@ heading returns from its nearest point, off the plane; a rough one mostly
 from where it crosses the plane, its speckle several unequal peaks.
 :class:`EdgeProbe` images a fine range profile about a detection from its
 ping's channels and reads ``u`` from the edges' spacing
-(:func:`edge_spacing_m`); the line search asks it only about lines its other
-tests leave undecided (:func:`clbeam.survey.line_products.diffuse_shift`).
+(:func:`edge_spacing_m`); the line search asks it only about the kept lines
+its burials and fading leave undecided (docs/lines.md, How, step 6).
 On a point scatterer 30 and 45 m off the plane at 250 m the spacing is 1.15
 and 0.97 times ``L u / 2`` (the pulse's own sidelobes push close edges apart).
 """

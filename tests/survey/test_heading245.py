@@ -1,11 +1,11 @@
-"""A survey line none of the line search's steps were chosen on, as a user runs it: the built-in scene
-``heading245`` (180 m of mud over a horizon 20 m down, heading 245 degrees, roll 3 degrees, heave 0.6 m; S1
-smooth at 8 degrees to the track, S2 smooth 2 m deep at -4 degrees curving 10 degrees/km, P3 rough at 25
-degrees, a row of five boulders along the track), simulated over three noise seeds and surveyed as
-``clbeam survey IN -o OUT --max-range 650 --seabed-band 5 40``, its lines scored against the simulator's truth
-(:func:`clbeam.evaluation.line_truth.score_survey`) at the targets of the lines' validation: one line over 90 %
-of a pipe's detectable pings, position RMS within 0.5 m, burial within 0.5 m, no false ``pipeline`` line (the
-boulder row among them: a row of point targets is no line target)."""
+"""A survey line none of the line search's steps but the edges test were chosen on, as a user runs it: the built-in
+scene ``heading245`` (180 m of mud over a horizon 20 m down, heading 245 degrees, roll 3 degrees, heave 0.6 m; S1
+smooth at 8 degrees to the track, S2 smooth 2 m deep at -4 degrees curving 10 degrees/km, P3 rough at 25 degrees, a
+row of five boulders along the track), simulated over three noise seeds and surveyed as ``clbeam survey IN -o OUT
+--max-range 650 --seabed-band 5 40``, its lines scored against the simulator's truth
+(:func:`clbeam.evaluation.line_truth.score_survey`) at the targets of the lines' validation: one line over 90 % of a
+pipe's detectable pings, position RMS within 0.5 m, burial within 0.5 m, no false ``pipeline`` line (the boulder row
+among them: a row of point targets is no line target)."""
 
 from __future__ import annotations
 
