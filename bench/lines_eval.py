@@ -199,15 +199,16 @@ def burial_over_seeds(burials: dict) -> list:
 
 def false_rate(runs: list, thresholds=(-6, -4, -2, 0, 2, 4, 6)) -> list:
     """Pipeline lines (and lines of any kind) per km against the score threshold over clutter-only surveys
-    (the lines built once with no threshold, counted by score); ``runs``: ``(store, options)``."""
+    (the lines built once with no threshold, counted by score, without the edges test: it would image every
+    chance track's detections again); ``runs``: ``(store, options, input file)``."""
     rows, km = [], 0.0
     kept = []
-    for out, opts in runs:
+    for out, opts, nc in runs:
         pr = finalize_survey(out, SurveyOptions(grid=opts.grid, imaging=opts.imaging,
                                                 lines=LineOptions(min_score=-1e9)))
         km += pr.track_km
         kept += pr.lines.rows
-        finalize_survey(out, opts)  # the products with the default threshold again
+        finalize_survey(out, opts, inputs=[nc])  # the products with the default threshold again
     for s in thresholds:
         over = [r for r in kept if r["score"] >= s]
         n_pipe = sum(r["kind"] == "pipeline" for r in over)
@@ -290,7 +291,7 @@ def main(argv=None) -> None:
         print(f"{spec}: surveyed in {time.perf_counter() - t0:.0f} s, {res.products.n_pipelines} pipeline line(s)"
               + (f" scoring {min(scores):.1f}-{max(scores):.1f}" if scores else ""))
         if spec.startswith("clutter"):
-            clutter.append((out, opts))
+            clutter.append((out, opts, nc))
     if clutter:
         print("\n" + "\n".join(false_rate(clutter)))
     for split in ("tuning", "validation"):

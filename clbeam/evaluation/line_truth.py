@@ -200,7 +200,8 @@ def _above_chance(truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, tar
     """The mean count of pings with a detection within ``match_m`` of the target's copies, and whether the
     target's own count at one of its two places (its crossing and its specular image, ``y sin^2 a`` apart for
     a pipe at ``a`` to the track) is improbable under that rate: a one-sided binomial tail over the pings the
-    target crosses below half :data:`SEEN_P_VALUE` (two places tested).
+    target crosses below half :data:`SEEN_P_VALUE` (two places tested; all of it where the two places' windows
+    overlap in every ping).
 
     The copies lie :data:`CHANCE_OFFSETS_M` beyond the span of the two places, so that neither the target's
     echoes nor the arc between them fall in a copy's window.  Each place is tested on its own, as a copy's
@@ -218,7 +219,8 @@ def _above_chance(truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, tar
     chance = float(np.mean([pings_near(hi + shift if shift > 0 else lo + shift) for shift in CHANCE_OFFSETS_M]))
     rate = min(max(chance, 0.5) / crossing, 1.0)  # half a ping at least: no copy hit is no proof of a zero rate
     own = max(pings_near(y), pings_near(image))
-    return chance, bool(binom.sf(min(own, crossing) - 1, crossing, rate) < SEEN_P_VALUE / 2)
+    places = 2 if np.nanmax(hi - lo) > 2 * match_m else 1  # windows that overlap in every ping are one place
+    return chance, bool(binom.sf(min(own, crossing) - 1, crossing, rate) < SEEN_P_VALUE / places)
 
 
 def score_survey(products, input_paths: list, *, match_m: float = MATCH_M) -> tuple[list, dict] | None:

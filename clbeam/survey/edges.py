@@ -30,8 +30,9 @@ from clbeam.model.grid import PolarGrid
 
 log = logging.getLogger(__name__)
 
-#: range profiled either side of a detection and its step (m): the edges of ``u`` up to 0.4 and 0.1 m peaks
-PROFILE_HALF_M, PROFILE_STEP_M = 0.4, 0.01
+#: range profiled either side of a detection and its step (m): a detection sits on one edge, the other ``L u / 2``
+#: away (0.6 m holds the second edge up to 1.4 times ``L u / 2`` for ``u`` to 0.24 with a 3.5 m column); 0.1 m peaks
+PROFILE_HALF_M, PROFILE_STEP_M = 0.6, 0.01
 #: angles profiled either side of it and their step (degree): the profile is the row through the maximum
 PROFILE_HALF_DEG, PROFILE_STEP_DEG = 0.1, 0.02
 #: two edges are the only maxima within this of the profile's top (dB), and within this of each other (dB)
@@ -48,7 +49,8 @@ def edge_spacing_m(profile: np.ndarray, step_m: float) -> float:
         return math.nan
     inner = np.flatnonzero((p[1:-1] >= p[:-2]) & (p[1:-1] > p[2:])) + 1
     clear = inner[p[inner] >= p.max() * 10 ** (-EDGE_CLEAR_DB / 10)]
-    if clear.size != 2 or p[clear].min() < p[clear].max() * 10 ** (-EDGE_EQUAL_DB / 10):
+    if clear.size != 2 or p[clear].min() < p[clear].max() * 10 ** (-EDGE_EQUAL_DB / 10) \
+            or p[clear].max() < p.max():  # the top at an end of the profile: a third peak beyond it
         return math.nan
     log_p = np.log(np.maximum(p, p.max() * 1e-12))
 
@@ -104,7 +106,8 @@ class EdgeProbe:
         return u
 
     def _profile(self, ping: int, range_m: float, angle_deg: float) -> np.ndarray | None:
-        """The intensity along range through the maximum of a fine patch about ``(range_m, angle_deg)``."""
+        """The intensity along range through the maximum of a fine patch about ``(range_m, angle_deg)``; ``None``
+        where it cannot be made (a warning says why: the products are written whatever the probe meets)."""
         index = int(self.file_index[ping])
         if not (0 <= index < len(self.paths)) or not (math.isfinite(range_m) and math.isfinite(angle_deg)):
             return None
@@ -112,16 +115,18 @@ class EdgeProbe:
             if index not in self._files:
                 self._files[index] = PingFile(self.paths[index])
             data = self._files[index].ping(int(self.file_ping[ping]))
-        except Exception as exc:  # an input moved or damaged since the run: the probe says nothing
-            log.warning("edge probe: ping %d of %s not read (%s)", int(self.file_ping[ping]), self.paths[index], exc)
+            if self._imager is None:  # one engine for every profile (cubic samples: -35 dB, no beams)
+                self._imager = Imager(self.grid, self.imaging, backend=self.backend, device=self.device)
+            ranges = range_m + np.arange(-PROFILE_HALF_M, PROFILE_HALF_M + PROFILE_STEP_M / 2, PROFILE_STEP_M)
+            angles = angle_deg + np.arange(-PROFILE_HALF_DEG, PROFILE_HALF_DEG + PROFILE_STEP_DEG / 2,
+                                           PROFILE_STEP_DEG)
+            r, a = np.meshgrid(ranges, angles)
+            sums = sums_at_points(self._imager.engine, self._imager.beamform_input(data), r, a, interp="cubic",
+                                  grid=self.grid, outputs=("intensity",))
+        except Exception as exc:  # an input moved or damaged since the run, no device: the probe says nothing
+            log.warning("edge probe: ping %d of %s not profiled (%s)", int(self.file_ping[ping]), self.paths[index],
+                        exc)
             return None
-        if self._imager is None:  # one engine for every profile (cubic samples: -35 dB, no beams)
-            self._imager = Imager(self.grid, self.imaging, backend=self.backend, device=self.device)
-        ranges = range_m + np.arange(-PROFILE_HALF_M, PROFILE_HALF_M + PROFILE_STEP_M / 2, PROFILE_STEP_M)
-        angles = angle_deg + np.arange(-PROFILE_HALF_DEG, PROFILE_HALF_DEG + PROFILE_STEP_DEG / 2, PROFILE_STEP_DEG)
-        r, a = np.meshgrid(ranges, angles)
-        sums = sums_at_points(self._imager.engine, self._imager.beamform_input(data), r, a, interp="cubic",
-                              grid=self.grid, outputs=("intensity",))
         intensity = np.asarray(sums.intensity, dtype=np.float64).reshape(r.shape)
         return intensity[int(np.argmax(np.max(intensity, axis=1)))]
 

@@ -460,13 +460,14 @@ def _edges_from_nearest_point(frame: TrackFrame, members: np.ndarray, slope: np.
                               probe) -> bool:
     """Whether the line's echoes came from its nearest point off the plane, as a smooth pipe's do
     (:func:`clbeam.survey.edges.edges_from_nearest_point` on the direction cosines ``probe`` reads from their
-    edges against the nearest point's, ``(h / R) sin a`` at each detection's offset ``h`` from its grid centre,
-    slant range ``R`` and the path's heading ``a``); ``False`` without a probe."""
+    edges against the nearest point's, ``(h / R) sin a*`` at each detection's offset ``h`` from its grid centre
+    and slant range ``R``, ``sin a*`` the slope of the echoes' path, as :func:`_fades` has it); ``False``
+    without a probe."""
     if probe is None or frame.r is None or members.size == 0:
         return False
     r = frame.r[members]
     h_over_r = np.abs(frame.y[members] - centre_y) / np.where(r > 0, r, np.nan)
-    u_nearest = np.abs(h_over_r * slope / np.sqrt(1 + slope ** 2))
+    u_nearest = np.clip(h_over_r, 0, 1) * np.clip(np.abs(slope), 0, 1)
     return edges_from_nearest_point(lambda pick: probe(members[pick]), u_nearest)
 
 

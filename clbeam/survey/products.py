@@ -143,15 +143,12 @@ class _FirstPass:
 def finalize_survey(output, options: SurveyOptions, *, failures=(), inputs=None) -> SurveyProducts:
     """Build the survey products from the ledger of ``output``.
 
-    Reads the ledger twice, one ping at a time: first the navigation and the
-    detections above the map threshold (the only survey-wide arrays kept:
-    about 200 bytes per detection and 4 per peak), which are associated
-    into objects; then every peak, georeferenced and written to the Zarr
-    group ``peaks``, the CSV and the GeoJSON.  Each text product is written
-    under a temporary name and renamed; the store's per-ping variables
-    (navigation, time, grid centre, source, sound speed, ``imaged``,
-    ``n_peaks``) and attributes (with the sonar's ``pulse_band_hz`` and
-    ``array_width_m``, as in an image file) are updated.
+    Reads the ledger twice, one ping at a time: first the navigation and the detections above the map
+    threshold (the only survey-wide arrays kept: about 200 bytes per detection and 4 per peak), which are
+    associated into objects; then every peak, georeferenced and written to the Zarr group ``peaks``, the CSV
+    and the GeoJSON.  Each text product is written under a temporary name and renamed; the store's per-ping
+    variables (navigation, time, grid centre, source, sound speed, ``imaged``, ``n_peaks``) and attributes
+    (with the sonar's ``pulse_band_hz`` and ``array_width_m``, as in an image file) are updated.
 
     Parameters
     ----------
@@ -207,10 +204,11 @@ def finalize_survey(output, options: SurveyOptions, *, failures=(), inputs=None)
 def _edge_probe(output: Path, inputs, first: _FirstPass, det: _Detections, centre_yz: np.ndarray,
                 options: SurveyOptions):
     """``probe(detections) -> u`` (:class:`clbeam.survey.edges.EdgeProbe` at the detections' ranges and angles from
-    their grid centres), or ``None``: no inputs given, inputs other than the store's, or no pulse band (the
-    column's length ``L`` is the band centre's wavelength over the lines' ``beam_width_deg``)."""
+    their grid centres), or ``None``: no inputs given, inputs other than the store's, no pulse band or no beam
+    width (the column's length ``L`` is the band centre's wavelength over the lines' ``beam_width_deg``, 4.5
+    degrees for the SBP29's 3.5 m)."""
     band = first.sonar.get("pulse_band_hz")
-    if inputs is None or not band:
+    if inputs is None or not band or not options.lines.beam_width_deg > 0:
         return None
     names = json.loads(read_root_attrs(output).get("input_files", "[]"))
     if names != [Path(p).name for p in inputs]:

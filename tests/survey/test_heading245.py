@@ -24,6 +24,9 @@ SEEDS = (0, 1, 2)
 ON_LINE, POSITION_M, BURIAL_M = 0.9, 0.5, 0.5
 
 
+pytestmark = pytest.mark.slow  # three 40-ping surveys: about 2.5 min on two cores
+
+
 @pytest.fixture(scope="module")
 def surveys(tmp_path_factory):
     """Per seed: the truth's rows per pipeline and the false-line summary."""

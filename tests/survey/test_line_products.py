@@ -196,15 +196,16 @@ def test_a_pipe_with_two_places_in_dense_clutter_is_not_seen_for_having_two_wind
 def test_seen_above_chance_is_the_binomial_tail_against_the_copies_rate():
     """No clutter but one detection at each copy in the first ``c`` pings: the chance rate is ``c / n``, and a
     target with ``m`` detectable pings of ``n`` is seen exactly when scipy's binomial tail P(X >= m) is below
-    half of 1e-3 (two places tested; checked on both sides of the threshold); a target crossing 3 pings is seen
-    in none of them against a rate of half a ping (the floor), since P(X >= 3) = (0.5/3)^3 is above it."""
+    1e-3 (its crossing and image one place: the full threshold; checked on both sides of it); a target
+    crossing 3 pings is seen in none of them against a rate of half a ping (the floor), since P(X >= 3) =
+    (0.5/3)^3 is above it."""
     from scipy.stats import binom
 
     from clbeam.evaluation.line_truth import CHANCE_OFFSETS_M, SEEN_P_VALUE
 
     n, c = 40, 4
     rate = c / n
-    m_seen = next(m for m in range(n + 1) if binom.sf(m - 1, n, rate) < SEEN_P_VALUE / 2)
+    m_seen = next(m for m in range(n + 1) if binom.sf(m - 1, n, rate) < SEEN_P_VALUE)
     for m, seen in ((m_seen, True), (m_seen - 1, False)):
         truth = LineTruth(["T"], np.full((n, 1), 0.0), np.ones((n, 1)), np.full((n, 1), 0.0))
         own = {k: [0.0] for k in range(m)}
