@@ -107,3 +107,91 @@ def test_the_probe_reads_how_far_off_the_plane_a_simulated_point_lies(points_off
             assert math.isnan(u)
         else:
             assert EDGE_RATIO[0] <= u / (x / r) <= EDGE_RATIO[1], (x, u, x / r)
+
+
+def test_the_probe_is_asked_about_the_lines_own_detections_in_the_callers_order(monkeypatch):
+    """Detections given in shuffled order (a buried line 0.8 m deep at 200 m across over 30 pings, and clutter):
+    whatever the line search asks of the probe about a line's members, the probe receives the indices of those
+    same detections in the order it was given them (their pings, offsets and CFs are the members')."""
+    from clbeam.survey import line_products
+    from clbeam.survey.georef import SurveyNavigation
+    from clbeam.survey.line_options import LineOptions
+    from clbeam.survey.line_products import LineDetections, survey_lines
+
+    rng = np.random.default_rng(3)
+    n = 30
+    ping = np.r_[np.arange(n), rng.integers(0, n, 300)]
+    y = np.r_[200.0 + rng.normal(0, 0.1, n), rng.uniform(-400, 400, 300)]
+    z = np.r_[230.8 + rng.normal(0, 0.05, n), 230.0 + rng.uniform(0, 5, 300)]
+    cf = np.r_[np.full(n, 0.9), rng.uniform(0.4, 0.6, 300)]
+    shuffle = rng.permutation(ping.size)
+    ping, y, z, cf = ping[shuffle], y[shuffle], z[shuffle], cf[shuffle]
+    received = []
+
+    def probe(index):
+        received.append(np.asarray(index))
+        return np.full(len(index), np.nan)
+    asked = []
+
+    def specular(frame, tr, path_y, sb, centre_yz, echoes, options):   # asks the probe about every member
+        if echoes[1] is not None:
+            echoes[1](tr.members)
+            asked.append((frame.ping[tr.members], frame.cf[tr.members]))
+        return None
+    monkeypatch.setattr(line_products, "_specular", specular)
+    nav = SurveyNavigation(n, None)
+    imaged = np.ones(n, dtype=bool)
+    nav.finish(imaged)
+    lines = survey_lines(LineDetections(ping, y, z, cf, edge_probe=probe), np.tile([230.0, 0.0], (n, 1)),
+                         np.zeros((n, 2)), imaged, nav, LineOptions())
+    assert any(r["kind"] == "pipeline" for r in lines.rows) and asked and len(asked) == len(received)
+    for (frame_ping, frame_cf), index in zip(asked, received):
+        np.testing.assert_array_equal(ping[index], frame_ping)
+        np.testing.assert_array_equal(cf[index], frame_cf)
+    line = next(k for k, r in enumerate(lines.rows) if r["kind"] == "pipeline")
+    assert any(set(index) == set(np.flatnonzero(lines.labels == line)) for index in received)
+
+
+def test_a_survey_probes_its_own_inputs_at_each_detections_range_and_angle(monkeypatch, caplog):
+    """``_edge_probe``: the probe reads the store's own inputs (others, a missing pulse band or a zero beam width:
+    no probe, the first with a warning), with ``L`` the band centre's wavelength over the beam width (1500 m/s,
+    2-9 kHz, 4.5 degrees: 3.47 m), at each detection's range ``hypot(dy, dz)`` and angle ``atan2(dy, dz)`` from
+    its ping's grid centre."""
+    import dataclasses
+    import json
+    from types import SimpleNamespace
+
+    from clbeam.survey import products
+    from clbeam.survey.line_options import LineOptions
+
+    made = {}
+
+    class Recorder:
+        def __init__(self, paths, file_index, file_ping, column_length_m, **kw):
+            made["column_m"] = column_length_m
+
+        def __call__(self, pings, range_m, angle_deg):
+            made["args"] = (pings, range_m, angle_deg)
+            return np.zeros(len(pings))
+    monkeypatch.setattr(products, "EdgeProbe", Recorder)
+    monkeypatch.setattr(products, "read_root_attrs", lambda output: {"input_files": json.dumps(["a.nc", "b.nc"])})
+    first = SimpleNamespace(sonar={"pulse_band_hz": [2000.0, 9000.0]},
+                            per_ping={"sound_speed": np.full(2, 1500.0), "file_index": np.zeros(2, dtype=int),
+                                      "file_ping": np.arange(2)})
+    det = SimpleNamespace(ping=np.array([0, 1]), y=np.array([10.0, 103.0]), z=np.array([200.0, 204.0]))
+    centre = np.array([[0.0, 0.0], [3.0, 4.0]])
+    options = SimpleNamespace(lines=LineOptions(), grid=None, imaging=None, backend=None, device=None)
+    probe = products._edge_probe("s.zarr", ["/x/a.nc", "/y/b.nc"], first, det, centre, options)
+    probe(np.array([1]))
+    assert made["column_m"] == pytest.approx(1500.0 / 5500.0 / math.radians(4.5))
+    pings, r, a = made["args"]
+    assert pings.tolist() == [1] and r[0] == pytest.approx(math.hypot(100.0, 200.0))
+    assert a[0] == pytest.approx(math.degrees(math.atan2(100.0, 200.0)))
+    with caplog.at_level("WARNING"):
+        assert products._edge_probe("s.zarr", ["/x/b.nc", "/y/a.nc"], first, det, centre, options) is None
+    assert "not the store's" in caplog.text
+    assert products._edge_probe("s.zarr", None, first, det, centre, options) is None
+    assert products._edge_probe("s.zarr", ["a.nc", "b.nc"], SimpleNamespace(**{**vars(first), "sonar": {}}), det,
+                                centre, options) is None
+    flat = SimpleNamespace(**{**vars(options), "lines": dataclasses.replace(LineOptions(), beam_width_deg=0.0)})
+    assert products._edge_probe("s.zarr", ["a.nc", "b.nc"], first, det, centre, flat) is None
