@@ -465,10 +465,17 @@ def _edges_from_nearest_point(frame: TrackFrame, members: np.ndarray, slope: np.
     without a probe."""
     if probe is None or frame.r is None or members.size == 0:
         return False
+    u_nearest = np.abs(_offplane_cosine(frame, members, slope, centre_y))
+    return edges_from_nearest_point(lambda pick: probe(members[pick]), u_nearest)
+
+
+def _offplane_cosine(frame: TrackFrame, members: np.ndarray, sin_a: np.ndarray, centre_y: np.ndarray) -> np.ndarray:
+    """The direction cosine off the ping's plane at which the source sees a smooth pipe's nearest point,
+    ``(h / R) sin a*``: each detection's offset ``h`` from its grid centre ``centre_y`` (m), its slant range
+    ``R`` and ``sin a*``, the slope of the echoes' path (signed)."""
     r = frame.r[members]
     h_over_r = np.abs(frame.y[members] - centre_y) / np.where(r > 0, r, np.nan)
-    u_nearest = np.clip(h_over_r, 0, 1) * np.clip(np.abs(slope), 0, 1)
-    return edges_from_nearest_point(lambda pick: probe(members[pick]), u_nearest)
+    return np.clip(sin_a, -1, 1) * np.clip(h_over_r, 0, 1)
 
 
 def _specular_burial(frame: TrackFrame, m: np.ndarray, slope: np.ndarray, centre_yz: np.ndarray, sb: np.ndarray,
@@ -536,9 +543,7 @@ def _fades(frame: TrackFrame, members: np.ndarray, sin_a: np.ndarray, centre_y: 
     0 and at least :func:`~clbeam.survey.specular.fading_floor_db`, a predicted fall of at least 3 dB."""
     if level is None or members.size < 4:
         return False
-    r = frame.r[members]
-    h_over_r = np.abs(frame.y[members] - centre_y) / np.where(r > 0, r, np.nan)
-    fading = fading_fit(level[members], r, np.clip(sin_a, -1, 1) * np.clip(h_over_r, 0, 1))
+    fading = fading_fit(level[members], frame.r[members], _offplane_cosine(frame, members, sin_a, centre_y))
     beta, error = fading["beta_db"], fading["beta_error_db"]
     return bool(np.isfinite(beta) and np.isfinite(error) and beta > 3 * error
                 and beta >= fading_floor_db(options.beam_width_deg) and fading["span_db"] >= 3.0)

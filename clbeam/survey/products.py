@@ -214,13 +214,11 @@ def _edge_probe(output: Path, inputs, first: _FirstPass, det: _Detections, centr
     if names != [Path(p).name for p in inputs]:
         log.warning("lines: the inputs are not the store's %s; undecided lines are not probed", names)
         return None
-    c = first.per_ping["sound_speed"]
-    c = float(np.nanmedian(c)) if np.isfinite(c).any() else 1500.0
-    column_m = c / (0.5 * (band[0] + band[1])) / math.radians(options.lines.beam_width_deg)
+    column_m = _sound_speed(first) / (0.5 * (band[0] + band[1])) / math.radians(options.lines.beam_width_deg)
     probe = EdgeProbe(inputs, first.per_ping["file_index"], first.per_ping["file_ping"], column_m, grid=options.grid,
                       imaging=options.imaging, backend=options.backend, device=options.device)
-    dy, dz = det.y - centre_yz[det.ping, 0], det.z - centre_yz[det.ping, 1]
-    range_m, angle_deg = np.hypot(dy, dz), np.degrees(np.arctan2(dy, dz))
+    range_m, angle_rad = _range_angle(det, centre_yz)
+    angle_deg = np.degrees(angle_rad)
     return lambda index: probe(det.ping[index], range_m[index], angle_deg[index])
 
 
@@ -258,15 +256,26 @@ def _smear_depth(det: _Detections, centre_yz: np.ndarray, beam_width_rad: float)
     """Each detection's depth below a line's crossing were it an echo of the line's stretch inside the transmit
     beam (m, :func:`clbeam.survey.burial.smear_deepening_m` at its range and angle from its grid centre
     ``centre_yz``, ``(n_pings, 2)`` m)."""
+    return smear_deepening_m(*_range_angle(det, centre_yz), beam_width_rad)
+
+
+def _range_angle(det: _Detections, centre_yz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each detection's slant range (m) and angle from nadir (rad) about its ping's grid centre ``centre_yz``
+    (``(n_pings, 2)`` m)."""
     dy, dz = det.y - centre_yz[det.ping, 0], det.z - centre_yz[det.ping, 1]
-    return smear_deepening_m(np.hypot(dy, dz), np.arctan2(dy, dz), beam_width_rad)
+    return np.hypot(dy, dz), np.arctan2(dy, dz)
+
+
+def _sound_speed(first: _FirstPass) -> float:
+    """The survey's median sound speed (m/s; 1500 where no ping gives one)."""
+    c = first.per_ping["sound_speed"]
+    return float(np.nanmedian(c)) if np.isfinite(c).any() else 1500.0
 
 
 def _receive_beam_rad(first: _FirstPass) -> float:
     """The receive beam's width of the survey's sonar (rad, NaN: unknown) at its median sound speed."""
-    c = first.per_ping["sound_speed"]
-    c = float(np.nanmedian(c)) if np.isfinite(c).any() else 1500.0
-    return receive_beam_width_rad(first.sonar.get("pulse_band_hz"), first.sonar.get("array_width_m"), c)
+    return receive_beam_width_rad(first.sonar.get("pulse_band_hz"), first.sonar.get("array_width_m"),
+                                  _sound_speed(first))
 
 
 def _angle_step_rad(grid) -> float:
