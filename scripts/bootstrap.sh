@@ -50,7 +50,9 @@ fi
 
 case "$task" in
     demo)  exec .venv/bin/clbeam demo "$@" ;;
-    test)  exec .venv/bin/python -m pytest "$@" ;;
+    # one worker process per core, each test file on one worker (its module fixtures built once);
+    # CLBEAM_TEST_WORKERS=0 runs the suite in this process
+    test)  exec .venv/bin/python -m pytest -n "${CLBEAM_TEST_WORKERS:-auto}" --dist loadfile "$@" ;;
     bench) exec .venv/bin/clbeam bench "$@" ;;
     *)     exec .venv/bin/clbeam "$task" "$@" ;;
 esac
