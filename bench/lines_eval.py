@@ -125,10 +125,23 @@ def split_summary(split: str, scored: list, clutter_km: float, clutter_false: in
                    f"{POSITION_TARGET_M} m {np.sum(pos[seen] <= POSITION_TARGET_M)}, burial within {BURIAL_TARGET_M} m "
                    f"{np.sum(np.abs(bur[seen]) <= BURIAL_TARGET_M)}, within two reported standard errors "
                    f"{covered[seen].sum()}")
+    out.append(_trackable_summary(split, rows, on, np.abs(bur) <= BURIAL_TARGET_M))
     if clutter_km > 0:
         out.append(f"{split}: {clutter_false} false pipeline line(s) over {clutter_km:.2f} km of clutter-only survey "
                    f"({clutter_false / clutter_km:.2f} per km)")
     return out
+
+
+def _trackable_summary(split: str, rows: list, one_line: np.ndarray, burial_ok: np.ndarray) -> str:
+    """One line of text: how many of ``rows`` a line that followed them exactly would report (``trackable``,
+    :mod:`clbeam.evaluation.line_truth`), how many of those are one line and within the burial target, and the
+    others' path scores."""
+    track = np.array([bool(r.get("trackable")) for r in rows])
+    below = ", ".join(f"{r.get('scene', '')} {r['target']} ({r['path_score']:.1f})" for r in rows
+                      if not r.get("trackable"))
+    return (f"{split}: {track.sum()} trackable (a line on the true path would score above the threshold): one line "
+            f"{one_line[track].sum()}, burial within {BURIAL_TARGET_M} m {burial_ok[track].sum()}; the others' "
+            f"path scores: {below or 'none'}")
 
 
 def survey_scene(spec: str, work: Path, lines: LineOptions, model: str = "specular"):
@@ -164,7 +177,7 @@ def scene_rows(name: str, products, nc: Path, scored=None) -> tuple[list, list]:
     rows, summary = scored
     out, burials = [], []
     for r in rows:
-        target = r["target"] + ("" if r["seen"] else " (at chance)")
+        target = r["target"] + ("" if r["seen"] else " (at chance)") + ("" if r.get("trackable") else " (untrackable)")
         out.append(f"| {name} | {target} | {r['detectable_pings']} | {r['pings_on_line']} "
                    f"({100 * r['on_line_fraction']:.0f} %) | {r['fragments']} | {r['position_rms_m']:.2f} | "
                    f"{r['burial_error_m']:+.2f} | {summary['false_lines']} |")

@@ -31,6 +31,12 @@ the nearer of the two.
   clutter is that dense a pipe that is seen can fail the test too (its
   line found by its continuity), so the test names targets, it does not
   drop them;
+* **trackable**: whether a line that followed the target exactly (at
+  either place, its strongest detection in each ping within the lines'
+  gates) would score above the lines' threshold
+  (:func:`clbeam.survey.line_products.path_score`): a target seen above
+  chance at its own place can still be one that no search over every
+  place and heading reports without as many false lines from the clutter;
 * **fragments**: ``pipeline`` lines that pass within ``match_m`` of it in
   at least three pings;
 * the line's **position error** (RMS of its cross-track offset minus the
@@ -159,7 +165,9 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
         ``on_line_fraction``, ``fragments``, ``line`` (-1: none),
         ``position_rms_m``, ``burial_error_m``, ``burial_se_m`` (the line's own standard error),
         ``nadir_deg`` (the target's median angle from nadir), ``chance_pings`` and ``seen`` (detectable pings at
-        shifted copies of the target, and whether its own count is above that chance); and ``false_lines``,
+        shifted copies of the target, and whether its own count is above that chance), ``path_score`` and
+        ``trackable`` (the better score of a line on its crossing or on its image, and whether it reaches the
+        lines' threshold; NaN and ``False`` where the lines offer no path score); and ``false_lines``,
         ``false_lines_per_km``, ``track_km``.
     """
     pipes = [k for k, r in enumerate(lines.rows) if r["kind"] == "pipeline"]
@@ -181,7 +189,8 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
                "on_line_fraction": cover.get(best, 0) / detectable.size if detectable.size else math.nan,
                "fragments": int(frags), "line": int(lines.rows[best]["line"]) if best >= 0 else -1,
                "position_rms_m": math.nan, "burial_error_m": math.nan, "burial_se_m": math.nan,
-               "nadir_deg": truth.nadir_deg(t), "chance_pings": chance, "seen": seen}
+               "nadir_deg": truth.nadir_deg(t), "chance_pings": chance, "seen": seen,
+               **_trackable(lines, truth, t)}
         if best >= 0:
             # over every ping of the line's extent where the target crosses the plane, near it or not
             pings, y = lines.ping_paths[best]
@@ -193,6 +202,22 @@ def score_lines(lines, truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray
     false = sum(all(near[k, t].size < 3 for t in range(len(truth.names))) for k in pipes)
     return rows, {"false_lines": int(false), "false_lines_per_km": false / track_km if track_km > 0 else math.nan,
                   "track_km": float(track_km)}
+
+
+def _trackable(lines, truth: LineTruth, target: int) -> dict:
+    """``path_score`` and ``trackable`` of a target (:func:`score_lines`): the lines' score of its crossing (at
+    its own burial) and of its image (at its detections' burial: a specular echo lies deeper), the better."""
+    score_path = getattr(lines, "score_path", None)
+    if score_path is None:
+        return {"path_score": math.nan, "trackable": False}
+    pings = np.arange(truth.y.shape[0])
+    burial = truth.burial[:, target]
+    scores = [score_path(pings, truth.y[:, target], float(np.nanmedian(burial)) if np.isfinite(burial).any()
+                         else None)]
+    if truth.image_y is not None:
+        scores.append(score_path(pings, truth.image_y[:, target]))
+    best = max(scores)
+    return {"path_score": best, "trackable": bool(best >= lines.min_score)}
 
 
 def _above_chance(truth: LineTruth, det_ping: np.ndarray, det_y: np.ndarray, target: int,

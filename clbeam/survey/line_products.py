@@ -98,6 +98,10 @@ class SurveyLines:
     too_few_pings : str or None
         Why no line could be found (the survey imaged fewer pings than a
         line needs to be seeded), in words; ``None`` otherwise.
+    score_path : callable or None
+        ``score_path(pings, y, burial=None) -> float``: the score a line
+        would have that followed a given path (:func:`path_score`), in the
+        frame the lines were found in; ``None`` where none was searched.
     """
 
     rows: list
@@ -108,6 +112,7 @@ class SurveyLines:
     min_score: float = math.nan
     ping_paths: list = field(default_factory=list)
     too_few_pings: str | None = None
+    score_path: Callable | None = None
 
 
 def smooth_seabed(seabed: np.ndarray, imaged: np.ndarray, half_window: int = 4) -> np.ndarray:
@@ -204,7 +209,53 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
         paths.append(path)
         geo.append(lonlat)
         ping_paths.append(ping_path)
-    return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths)
+    size = _search_size(frame)
+    return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths,
+                       score_path=lambda p, y, burial=None: path_score(frame, p, y, options, size, burial))
+
+
+def path_score(frame: TrackFrame, pings: np.ndarray, path_y: np.ndarray, options: LineOptions, size: SearchSize,
+               burial: float | None = None) -> float:
+    """The score (:func:`_score`) of a line that follows ``path_y`` (m across) at survey ``pings`` (NaN: off the
+    path), taking in each imaged ping the strongest detection within the across gate and the burial gate: what
+    the best tracking of that path could report, for the evaluation's question whether a target's own path
+    stands above the clutter as the search must have it (``-inf``: fewer than three detections on it).
+
+    ``burial`` (m below the seabed): the burial gate's centre; ``None``: the detections' own along the path
+    (:func:`~clbeam.survey.lines.line_burial`).  Across, the path is interpolated to the imaged pings between its
+    first and last."""
+    pings, path_y = np.asarray(pings), np.asarray(path_y, dtype=np.float64)
+    ok = np.isfinite(path_y) & np.isin(pings, frame.pings)
+    if np.count_nonzero(ok) < 3:
+        return -math.inf
+    at = np.searchsorted(frame.pings, pings[ok])
+    first, last = int(at.min()), int(at.max())
+    ext = frame.pings[first:last + 1]
+    y_ext = np.interp(ext, pings[ok], path_y[ok])
+    idx = np.arange(int(frame.starts[first]), int(frame.starts[last + 1]))
+    idx = idx[np.isfinite(frame.b[idx])]
+    near = idx[np.abs(frame.y[idx] - y_ext[np.searchsorted(ext, frame.ping[idx])]) <= options.across_gate_m]
+    if near.size < 3:
+        return -math.inf
+    # burials to try: the one given, or the detections' own at each CF level (in dense clutter the strong echoes'
+    # burial is the line's, where every detection's median is the clutter's)
+    burials = [burial] if burial is not None else [
+        line_burial(frame.b[near[frame.cf[near] >= lv]], frame.b_sigma[near[frame.cf[near] >= lv]])[0]
+        for lv in CF_LEVELS if np.count_nonzero(frame.cf[near] >= lv) >= 3]
+    return max((_path_score_at(frame, near, (first, last), y_ext, float(b), options, size) for b in burials),
+               default=-math.inf)
+
+
+def _path_score_at(frame: TrackFrame, near: np.ndarray, extent: tuple, y_ext: np.ndarray, burial: float,
+                   options: LineOptions, size: SearchSize) -> float:
+    """:func:`path_score` at one burial (m): the strongest detection of each ping among ``near`` within the
+    burial gate makes the track of pings ``extent`` (first, last: indices into ``frame.pings``)."""
+    near = near[burial_ok(frame.b[near], frame.b_sigma[near], burial, options)]
+    near = near[np.lexsort((-frame.cf[near], frame.ping[near]))]  # by ping, the strongest first
+    members = near[np.r_[True, np.diff(frame.ping[near]) > 0]] if near.size else near
+    if members.size < 3:
+        return -math.inf
+    return _score(frame, Track(members, *extent), y_ext, burial, options, size)
 
 
 #: a weaker line alongside a better one within the reach of the better one's transmit smear out to this many

@@ -12,10 +12,11 @@ import pytest
 from scipy.special import erf
 from scipy.stats import binom
 
+from clbeam.evaluation.line_truth import LineTruth, score_lines
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_products import LineDetections, survey_lines
-from clbeam.survey.line_score import SearchSize, clutter_hit_rate, copy_offsets, line_score
+from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
 from clbeam.survey.line_score import tests_per_km as n_tests_per_km
 
 N_PINGS = 100
@@ -249,3 +250,63 @@ def test_a_side_whose_copies_barely_reach_the_detections_does_not_set_the_clutte
     p = clutter_hit_rate(y - path_y[ping], ping, path_y, offsets, GATE_Y, (-600.0, 400.0))
     expected = -math.expm1(-per_m * 2 * GATE_Y)
     assert p[0] == pytest.approx(expected, abs=4 * math.sqrt(expected / (offsets.size // 2 * N_PINGS)))
+
+
+def straight_survey(rng, hit_rate: float, clutter_per_m: float, n_pings: int = 60, depth: float = 230.0):
+    """A pipe 1 m deep drifting 0.3 m a ping from -350 m, detected in a share ``hit_rate`` of the pings (CF
+    0.6-0.8, 0.2 m scatter across), in Poisson clutter of ``clutter_per_m`` a metre across -500 to -200 m
+    (CF 0.4-0.6, burials uniform over 27 m); ``(detections, seabed, the pipe's path)``."""
+    path = -350.0 + 0.3 * np.arange(n_pings)
+    ping, y, z, cf = [], [], [], []
+    for k in range(n_pings):
+        n = rng.poisson(clutter_per_m * 300)
+        yk, zk, ck = list(rng.uniform(-500, -200, n)), list(depth + rng.uniform(-2, 25, n)), list(rng.uniform(0.4, 0.6, n))
+        if rng.random() < hit_rate:
+            yk.append(path[k] + rng.normal(0, 0.2))
+            zk.append(depth + 1.0)
+            ck.append(rng.uniform(0.6, 0.8))
+        ping += [k] * len(yk)
+        y, z, cf = y + yk, z + zk, cf + ck
+    det = LineDetections(ping=np.asarray(ping), y=np.asarray(y), z=np.asarray(z), cf=np.asarray(cf))
+    return det, np.tile([depth, 0.0], (n_pings, 1)), path
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_line_on_the_true_path_scores_as_the_line_found_on_it_and_a_copy_off_it_as_chance(seed):
+    """``score_path``, the evaluation's question whether a target could be reported at all: on a pipe detected in
+    90 % of the pings the line the search finds scores within 5 % of its true path; the path moved 20 m into the
+    clutter scores below zero (a chance line a km or more); a pipe detected in 30 % of the pings, its echoes above
+    every clutter CF, scores the closed form of its hits at CF 0.6 against one clutter hit over the copies' pings
+    (the floor :func:`clutter_hit_rate` keeps), five CF levels tried."""
+    pings = np.arange(60)
+    det, seabed, path = straight_survey(np.random.default_rng(seed), 0.9, 0.05)
+    lines = lines_without_navigation(det, seabed)
+    found = [r["score"] for r in lines.rows if r["kind"] == "pipeline" and abs(r["mean_y_m"] + 341) < 3]
+    assert len(found) == 1
+    assert lines.score_path(pings, path) == pytest.approx(found[0], rel=0.05)
+    assert lines.score_path(pings, path + 20.0) < 0
+    det, seabed, path = straight_survey(np.random.default_rng(seed), 0.3, 0.3)
+    lines = lines_without_navigation(det, seabed)
+    on = det.cf >= 0.6
+    hits = np.unique(det.ping[on]).size
+    copies_pings = copy_offsets(GATE_Y).size // 2 * 60  # one side's copies, every ping within the swath
+    size = SearchSize(8.2, 300.0, 27.0)
+    closed = line_score([hits], 60, [1.0 / copies_pings], GATE_Y, GATE_B, size, LineOptions().max_angle_deg)
+    # the frame's swath and burial span are the detections' 1-99 % spans (about 294 m and 26.5 m)
+    assert lines.score_path(pings, path) == pytest.approx(closed - math.log10(len(CF_LEVELS)), abs=1.5)
+
+
+def test_the_evaluation_calls_a_target_trackable_by_the_better_of_its_two_places():
+    """:func:`score_lines`' ``path_score`` is the better of the line on the target's crossing (at its own
+    burial) and on its image: a target whose image is the pipe's path (its crossing 15 m off, in the clutter)
+    takes the image's score, reaches the threshold and is trackable; one whose both places lie in the clutter
+    is not."""
+    det, seabed, path = straight_survey(np.random.default_rng(5), 0.9, 0.05)
+    lines = lines_without_navigation(det, seabed)
+    n = path.size
+    truth = LineTruth(["T", "U"], np.c_[path + 15, path + 40], np.ones((n, 2)), np.c_[path, path + 25])
+    scored, _ = score_lines(lines, truth, det.ping, det.y, 1.0)
+    own = lines.score_path(np.arange(n), path)
+    assert own >= lines.min_score and lines.score_path(np.arange(n), path + 15, 1.0) < 0
+    assert scored[0]["path_score"] == pytest.approx(own) and scored[0]["trackable"]
+    assert scored[1]["path_score"] < 0 and not scored[1]["trackable"]
