@@ -221,9 +221,9 @@ def path_score(frame: TrackFrame, pings: np.ndarray, path_y: np.ndarray, options
     the best tracking of that path could report, for the evaluation's question whether a target's own path
     stands above the clutter as the search must have it (``-inf``: fewer than three detections on it).
 
-    ``burial`` (m below the seabed): the burial gate's centre; ``None``: the detections' own along the path
-    (:func:`~clbeam.survey.lines.line_burial`).  Across, the path is interpolated to the imaged pings between its
-    first and last."""
+    ``burial`` (m below the seabed): a burial gate's centre to try beside the detections' own along the path at
+    each CF level (:func:`~clbeam.survey.lines.line_burial`), the best kept.  Across, the path is interpolated to
+    the imaged pings between its first and last, the gate the lines' (:func:`~clbeam.survey.lines.across_gate`)."""
     pings, path_y = np.asarray(pings), np.asarray(path_y, dtype=np.float64)
     ok = np.isfinite(path_y) & np.isin(pings, frame.pings)
     if np.count_nonzero(ok) < 3:
@@ -234,14 +234,17 @@ def path_score(frame: TrackFrame, pings: np.ndarray, path_y: np.ndarray, options
     y_ext = np.interp(ext, pings[ok], path_y[ok])
     idx = np.arange(int(frame.starts[first]), int(frame.starts[last + 1]))
     idx = idx[np.isfinite(frame.b[idx])]
-    near = idx[np.abs(frame.y[idx] - y_ext[np.searchsorted(ext, frame.ping[idx])]) <= options.across_gate_m]
+    at = np.searchsorted(ext, frame.ping[idx])
+    slope = np.gradient(y_ext, frame.ping_s[first:last + 1]) if ext.size > 1 else np.zeros(1)
+    near = idx[np.abs(frame.y[idx] - y_ext[at]) <= across_gate(frame, idx, slope[at], options)]
     if near.size < 3:
         return -math.inf
-    # burials to try: the one given, or the detections' own at each CF level (in dense clutter the strong echoes'
-    # burial is the line's, where every detection's median is the clutter's)
-    burials = [burial] if burial is not None else [
-        line_burial(frame.b[near[frame.cf[near] >= lv]], frame.b_sigma[near[frame.cf[near] >= lv]])[0]
-        for lv in CF_LEVELS if np.count_nonzero(frame.cf[near] >= lv) >= 3]
+    # burials to try: the one given and the detections' own at each CF level (in dense clutter the strong echoes'
+    # burial is the line's, where every detection's median is the clutter's; far out the detections' burials
+    # stray from the target's)
+    burials = [] if burial is None else [burial]
+    burials += [line_burial(frame.b[near[frame.cf[near] >= lv]], frame.b_sigma[near[frame.cf[near] >= lv]])[0]
+                for lv in CF_LEVELS if np.count_nonzero(frame.cf[near] >= lv) >= 3]
     return max((_path_score_at(frame, near, (first, last), y_ext, float(b), options, size) for b in burials),
                default=-math.inf)
 

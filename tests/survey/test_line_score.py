@@ -276,8 +276,8 @@ def test_a_line_on_the_true_path_scores_as_the_line_found_on_it_and_a_copy_off_i
     """``score_path``, the evaluation's question whether a target could be reported at all: on a pipe detected in
     90 % of the pings the line the search finds scores within 5 % of its true path; the path moved 20 m into the
     clutter scores below zero (a chance line a km or more); a pipe detected in 30 % of the pings, its echoes above
-    every clutter CF, scores the closed form of its hits at CF 0.6 against one clutter hit over the copies' pings
-    (the floor :func:`clutter_hit_rate` keeps), five CF levels tried."""
+    every clutter CF, scores above the lines' threshold and at most the closed form of its hits at CF 0.6 against
+    one clutter hit over the copies' pings (the floor :func:`clutter_hit_rate` keeps), five CF levels tried."""
     pings = np.arange(60)
     det, seabed, path = straight_survey(np.random.default_rng(seed), 0.9, 0.05)
     lines = lines_without_navigation(det, seabed)
@@ -292,8 +292,11 @@ def test_a_line_on_the_true_path_scores_as_the_line_found_on_it_and_a_copy_off_i
     copies_pings = copy_offsets(GATE_Y).size // 2 * 60  # one side's copies, every ping within the swath
     size = SearchSize(8.2, 300.0, 27.0)
     closed = line_score([hits], 60, [1.0 / copies_pings], GATE_Y, GATE_B, size, LineOptions().max_angle_deg)
-    # the frame's swath and burial span are the detections' 1-99 % spans (about 294 m and 26.5 m)
-    assert lines.score_path(pings, path) == pytest.approx(closed - math.log10(len(CF_LEVELS)), abs=1.5)
+    # at most the closed form at the narrowest gate (the frame's swath and burial span are the detections' 1-99 %
+    # spans, about 294 m and 26.5 m: 0.1 more); a gate widened by the detections' offset uncertainty takes fewer
+    # copies (a higher floor) and more tests, so less: still a line
+    score = lines.score_path(pings, path)
+    assert lines.min_score <= score <= closed - math.log10(len(CF_LEVELS)) + 0.5
 
 
 def test_the_evaluation_calls_a_target_trackable_by_the_better_of_its_two_places():
