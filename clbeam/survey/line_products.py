@@ -163,7 +163,7 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
         The detections (CF above the map threshold).
     seabed : numpy.ndarray
         ``(n_pings, 2)`` each ping's seabed ``(z0, slope)``
-        (:func:`clbeam.survey.burial.seabed_line`; NaN: none).
+        (:func:`clbeam.survey.burial.pooled_seabed_lines`; NaN: none).
     centre_yz : numpy.ndarray
         ``(n_pings, 2)`` grid centres (m).
     imaged : numpy.ndarray

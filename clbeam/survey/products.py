@@ -45,7 +45,13 @@ from clbeam.io.survey_store import (
     update_store,
 )
 from clbeam.survey.association import associate, describe_objects
-from clbeam.survey.burial import offplane_deepening_m, peak_slide_rad, receive_beam_width_rad, seabed_line, smear_deepening_m
+from clbeam.survey.burial import (
+    offplane_deepening_m,
+    peak_slide_rad,
+    pooled_seabed_lines,
+    receive_beam_width_rad,
+    smear_deepening_m,
+)
 from clbeam.survey.edges import EdgeProbe
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.inputs import one_line
@@ -242,14 +248,15 @@ def _write_features(output: Path, files: dict, det: _Detections, lines: SurveyLi
                          LINE_INTEGERS, paths, "clbeam lines", categories={"kind": LINE_KINDS})
 
 
-def _seabed(rec: dict, beam_width_rad: float) -> tuple | None:
-    """One ping's seabed (:func:`clbeam.survey.burial.seabed_line`) from its peaks, each raised by the depth its
-    echoes from off the ping's plane add (:func:`clbeam.survey.burial.offplane_deepening_m`; none where a peak has
-    no range or angle)."""
+def _seabed_peaks(rec: dict, beam_width_rad: float) -> tuple:
+    """One ping's peaks ``(y, z)`` (m) for its seabed (:func:`clbeam.survey.burial.pooled_seabed_lines`), each
+    raised by the depth its echoes from off the ping's plane add (:func:`clbeam.survey.burial.
+    offplane_deepening_m`; none where a peak has no range or angle), in float32: a survey's every peak is kept
+    until its pings are read."""
     peaks = rec["peaks"]
     y, z, r, a = (np.array([_nan(pk.get(k)) for pk in peaks]) for k in ("y_m", "z_m", "range_m", "angle_deg"))
     deeper = offplane_deepening_m(r, np.radians(a), beam_width_rad, rec.get("band_hz"))
-    return seabed_line(y, z - np.nan_to_num(deeper, nan=0.0))
+    return y.astype(np.float32), (z - np.nan_to_num(deeper, nan=0.0)).astype(np.float32)
 
 
 def _smear_depth(det: _Detections, centre_yz: np.ndarray, beam_width_rad: float) -> np.ndarray:
@@ -320,7 +327,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
     det_ping, det_row = array.array("q"), array.array("q")
     det_y, det_z, det_cf, det_level, det_snr = (array.array("d") for _ in range(5))
     sonar = {}
-    seabed = np.full((n, 2), np.nan)
+    seabed_peaks = [None] * n
     row = 0
     for rec in iter_ledger_records(output, names):
         g = rec["ping"]
@@ -337,9 +344,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
             # as an image file: the sonar of the first ping written (the lowest survey ping)
             sonar = {"pulse_band_hz": [float(b) for b in rec["band_hz"]],
                      "array_width_m": float(rec["array_width_m"])}
-        fit = _seabed(rec, math.radians(options.lines.beam_width_deg))
-        if fit is not None:
-            seabed[g] = fit
+        seabed_peaks[g] = _seabed_peaks(rec, math.radians(options.lines.beam_width_deg))
         for k, pk in enumerate(rec["peaks"]):
             if pk["cf"] > threshold:
                 det_ping.append(g)
@@ -354,7 +359,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
                                                                for a in (det_y, det_z, det_cf)),
                        row=np.asarray(det_row, dtype=np.int64), intensity_db=np.asarray(det_level, dtype=np.float64),
                        snr_db=np.asarray(det_snr, dtype=np.float64))
-    return _FirstPass(nav, per_ping, dets, row, sonar, seabed)
+    return _FirstPass(nav, per_ping, dets, row, sonar, pooled_seabed_lines(seabed_peaks))
 
 
 def peak_csv_columns(nav: SurveyNavigation, imaging=None) -> list:

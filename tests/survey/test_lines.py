@@ -17,7 +17,14 @@ from scipy.stats import binom, sem
 
 from clbeam.errors import OptionError
 from clbeam.survey import lines as lines_module
-from clbeam.survey.burial import MIN_SCATTER_N, SPECULAR_K_SIGMA, arc_constrained, seabed_line, specular_fit
+from clbeam.survey.burial import (
+    MIN_SCATTER_N,
+    SPECULAR_K_SIGMA,
+    arc_constrained,
+    pooled_seabed_lines,
+    seabed_line,
+    specular_fit,
+)
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_products import line_kind
 from clbeam.survey.line_score import SearchSize, line_score, log10_binomial_tail
@@ -264,6 +271,59 @@ def test_seabed_line_is_the_upper_edge_of_the_peaks_under_a_denser_horizon_and_s
         at = np.array([-500.0, 0.0, 500.0])
         errors.append(np.abs(fit[0] + fit[1] * at - (z0 + slope * at)).max())
     assert max(errors) < 0.6 and np.median(errors) < 0.35, errors
+
+
+def _weak_seabed_survey(rng, z0: float, slope: float, n_pings: int = 30) -> list:
+    """Per ping ``(y, z)`` peaks: a seabed so weak off nadir that a ping holds 4 of its peaks there and 2 at nadir,
+    a horizon 7 m down holding 40 and sediment between holding 15 (depths in the earth frame, heave taken out)."""
+    peaks = []
+    for _ in range(n_pings):
+        ys, yn, yh, yv = (rng.uniform(-w, w, n) for w, n in ((600, 4), (5, 2), (600, 40), (600, 15)))
+        y = np.r_[ys, yn, yh, yv]
+        z = z0 + slope * y + np.r_[rng.normal(0, 0.1, ys.size + yn.size), 7 + rng.normal(0, 0.3, yh.size),
+                                   rng.uniform(1, 7, yv.size)]
+        peaks.append((y, z))
+    return peaks
+
+
+def test_pooled_seabed_is_a_weak_seabed_over_a_brighter_horizon_where_one_ping_fits_the_horizon():
+    """Ten surveys of 30 pings over a weak seabed under a brighter horizon (:func:`_weak_seabed_survey`): one
+    ping's fit is the horizon (more than 2 m off at 0 or +-500 m) in most pings; pooled over nine pings the fit
+    is nearer the seabed than the horizon (within 3.5 m) in every ping, within 1 m in 90 % of them and 0.5 m in
+    the median (the Tukey refinement leans into the sediment 1-2 m down, as it does for one ping whose seabed
+    holds twice the sediment's peaks: 0.35 m there; over seeds 0-39 in tens, 94-99 % and 0.30-0.33 m)."""
+    z0, slope = 180.0, 0.003
+    at = np.array([-500.0, 0.0, 500.0])
+
+    def error(fit):
+        return np.abs(fit[0] + fit[1] * at - (z0 + slope * at)).max()
+    single, pooled = [], []
+    for seed in range(10):
+        peaks = _weak_seabed_survey(np.random.default_rng(seed), z0, slope)
+        single += [error(seabed_line(*p)) for p in peaks]
+        pooled += [error(f) for f in pooled_seabed_lines(peaks)]
+    single, pooled = np.array(single), np.array(pooled)
+    assert np.mean(single > 2.0) >= 0.8
+    assert pooled.max() < 3.5 and np.mean(pooled < 1.0) >= 0.9 and np.median(pooled) <= 0.5
+
+
+def test_pooled_seabed_keeps_each_pings_own_fit_where_it_is_the_seabed():
+    """Pings whose seabed holds 60 peaks under a horizon 7 m down holding 70: each
+    ping's own fit is within 2 m of the pooled one, so each ping keeps its own, bit for bit; one ping whose
+    seabed echoes were lost takes the pooled fit, within 1 m of the seabed."""
+    rng = np.random.default_rng(11)
+    z0, slope = 278.0, 0.004
+    peaks = []
+    for k in range(12):
+        ys, yh = rng.uniform(-600, 600, 60 if k != 6 else 0), rng.uniform(-600, 600, 70)
+        y = np.r_[ys, yh]
+        peaks.append((y, z0 + slope * y + np.r_[rng.normal(0, 0.1, ys.size), 7 + rng.normal(0, 0.3, yh.size)]))
+    fits = pooled_seabed_lines(peaks)
+    for k, p in enumerate(peaks):
+        if k != 6:
+            assert tuple(fits[k]) == seabed_line(*p)
+    assert abs(seabed_line(*peaks[6])[0] - z0) > 5
+    assert np.abs(fits[6, 0] + fits[6, 1] * np.array([-500.0, 0.0, 500.0]) - (z0 + slope * np.array([-500, 0, 500]))).max() < 1.0
 
 
 def test_arc_constraint_keeps_a_nadir_peak_and_moves_a_far_one_along_its_arc_onto_the_prior():
