@@ -32,6 +32,7 @@ family's tuning seeds) apart from validation (nothing was ever chosen on it).
 from __future__ import annotations
 
 import argparse
+import math
 import time
 import tracemalloc
 from pathlib import Path
@@ -134,10 +135,10 @@ def split_summary(split: str, scored: list, clutter_km: float, clutter_false: in
 
 def _trackable_summary(split: str, rows: list, one_line: np.ndarray, burial_ok: np.ndarray) -> str:
     """One line of text: how many of ``rows`` a line that followed them exactly would report (``trackable``,
-    :mod:`clbeam.evaluation.line_truth`), how many of those are one line and within the burial target, and the
-    others' path scores."""
+    :mod:`clbeam.evaluation.line_truth`), how many of those are one line and how many within the burial target,
+    and the others' path scores."""
     track = np.array([bool(r.get("trackable")) for r in rows])
-    below = ", ".join(f"{r.get('scene', '')} {r['target']} ({r['path_score']:.1f})" for r in rows
+    below = ", ".join(f"{r.get('scene', '')} {r['target']} ({r.get('path_score', math.nan):.1f})" for r in rows
                       if not r.get("trackable"))
     return (f"{split}: {track.sum()} trackable (a line on the true path would score above the threshold): one line "
             f"{one_line[track].sum()}, burial within {BURIAL_TARGET_M} m {burial_ok[track].sum()}; the others' "
@@ -177,7 +178,8 @@ def scene_rows(name: str, products, nc: Path, scored=None) -> tuple[list, list]:
     rows, summary = scored
     out, burials = [], []
     for r in rows:
-        target = r["target"] + ("" if r["seen"] else " (at chance)") + ("" if r.get("trackable") else " (untrackable)")
+        untrackable = not r.get("trackable") and not math.isnan(r.get("path_score", math.nan))
+        target = r["target"] + ("" if r["seen"] else " (at chance)") + (" (untrackable)" if untrackable else "")
         out.append(f"| {name} | {target} | {r['detectable_pings']} | {r['pings_on_line']} "
                    f"({100 * r['on_line_fraction']:.0f} %) | {r['fragments']} | {r['position_rms_m']:.2f} | "
                    f"{r['burial_error_m']:+.2f} | {summary['false_lines']} |")

@@ -216,7 +216,7 @@ def _trackable(lines, truth: LineTruth, target: int) -> dict:
                          else None)]
     if truth.image_y is not None:
         scores.append(score_path(pings, truth.image_y[:, target]))
-    best = max(scores)
+    best = max((v for v in scores if not math.isnan(v)), default=math.nan)
     return {"path_score": best, "trackable": bool(best >= lines.min_score)}
 
 

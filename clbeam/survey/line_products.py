@@ -217,9 +217,10 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
 def path_score(frame: TrackFrame, pings: np.ndarray, path_y: np.ndarray, options: LineOptions, size: SearchSize,
                burial: float | None = None) -> float:
     """The score (:func:`_score`) of a line that follows ``path_y`` (m across) at survey ``pings`` (NaN: off the
-    path), taking in each imaged ping the strongest detection within the across gate and the burial gate: what
-    the best tracking of that path could report, for the evaluation's question whether a target's own path
-    stands above the clutter as the search must have it (``-inf``: fewer than three detections on it).
+    path, any order), taking in each imaged ping the strongest detection within the across gate and the burial
+    gate, the line spanning them (the best of their runs that bridge ``max_gap_pings`` at most): what the best
+    tracking of that path could report, for the evaluation's question whether a target's own path stands above
+    the clutter as the search must have it (``-inf``: fewer than three detections on it).
 
     ``burial`` (m below the seabed): a burial gate's centre to try beside the detections' own along the path at
     each CF level (:func:`~clbeam.survey.lines.line_burial`), the best kept.  Across, the path is interpolated to
@@ -228,12 +229,12 @@ def path_score(frame: TrackFrame, pings: np.ndarray, path_y: np.ndarray, options
     ok = np.isfinite(path_y) & np.isin(pings, frame.pings)
     if np.count_nonzero(ok) < 3:
         return -math.inf
-    at = np.searchsorted(frame.pings, pings[ok])
-    first, last = int(at.min()), int(at.max())
+    order = np.argsort(pings[ok], kind="stable")
+    pings, path_y = pings[ok][order], path_y[ok][order]
+    first, last = (int(k) for k in np.searchsorted(frame.pings, pings[[0, -1]]))
     ext = frame.pings[first:last + 1]
-    y_ext = np.interp(ext, pings[ok], path_y[ok])
-    idx = np.arange(int(frame.starts[first]), int(frame.starts[last + 1]))
-    idx = idx[np.isfinite(frame.b[idx])]
+    y_ext = np.interp(ext, pings, path_y)
+    idx = np.arange(int(frame.starts[first]), int(frame.starts[last + 1]))  # burials unknown (NaN) pass the gate
     at = np.searchsorted(ext, frame.ping[idx])
     slope = np.gradient(y_ext, frame.ping_s[first:last + 1]) if ext.size > 1 else np.zeros(1)
     near = idx[np.abs(frame.y[idx] - y_ext[at]) <= across_gate(frame, idx, slope[at], options)]
@@ -256,9 +257,16 @@ def _path_score_at(frame: TrackFrame, near: np.ndarray, extent: tuple, y_ext: np
     near = near[burial_ok(frame.b[near], frame.b_sigma[near], burial, options)]
     near = near[np.lexsort((-frame.cf[near], frame.ping[near]))]  # by ping, the strongest first
     members = near[np.r_[True, np.diff(frame.ping[near]) > 0]] if near.size else near
-    if members.size < 3:
-        return -math.inf
-    return _score(frame, Track(members, *extent), y_ext, burial, options, size)
+    # a line spans its members and bridges at most max_gap_pings imaged pings without one, as a found one does:
+    # the path's pings beyond the swath or its echoes are no misses, a stray far along it starts another run
+    k = np.searchsorted(frame.pings, frame.ping[members])
+    runs = np.split(np.arange(members.size), np.flatnonzero(np.diff(k) > options.max_gap_pings + 1) + 1)
+    best = -math.inf
+    for run in (r for r in runs if r.size >= 3):
+        lo, hi = int(k[run[0]]), int(k[run[-1]])
+        best = max(best, _score(frame, Track(members[run], lo, hi), y_ext[lo - extent[0]:hi - extent[0] + 1], burial,
+                                options, size))
+    return best
 
 
 #: a weaker line alongside a better one within the reach of the better one's transmit smear out to this many

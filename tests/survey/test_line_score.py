@@ -313,3 +313,25 @@ def test_the_evaluation_calls_a_target_trackable_by_the_better_of_its_two_places
     assert own >= lines.min_score and lines.score_path(np.arange(n), path + 15, 1.0) < 0
     assert scored[0]["path_score"] == pytest.approx(own) and scored[0]["trackable"]
     assert scored[1]["path_score"] < 0 and not scored[1]["trackable"]
+
+
+@pytest.mark.parametrize("case", ["no seabed", "stops at ping 20", "pings shuffled"])
+def test_a_true_path_scores_as_its_found_line_without_a_seabed_past_its_echoes_and_in_any_order(case):
+    """The path score of a pipe detected in 90 % of the pings stays within 5 % of the line the search finds on it
+    where the pings have no seabed (burials unknown pass the gate, for the search and the path alike), where the
+    pipe's echoes stop at ping 20 while its path runs on (the line spans its members: the pings beyond are no
+    misses), and with the path's pings given in any order."""
+    det, seabed, path = straight_survey(np.random.default_rng(2), 0.9, 0.05)
+    pings = np.arange(path.size)
+    if case == "no seabed":
+        seabed = np.full_like(seabed, np.nan)
+    if case == "stops at ping 20":
+        keep = (det.ping < 20) | (np.abs(det.y - path[det.ping]) > 1.0)
+        det = LineDetections(ping=det.ping[keep], y=det.y[keep], z=det.z[keep], cf=det.cf[keep])
+    lines = lines_without_navigation(det, seabed)
+    found = [r["score"] for r in lines.rows if abs(r["mean_y_m"] + 345) < 8]
+    if case == "pings shuffled":
+        shuffle = np.random.default_rng(0).permutation(path.size)
+        pings, path = pings[shuffle], path[shuffle]
+    assert len(found) == 1
+    assert lines.score_path(pings, path) == pytest.approx(found[0], rel=0.05)
