@@ -209,9 +209,8 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
         paths.append(path)
         geo.append(lonlat)
         ping_paths.append(ping_path)
-    size = _search_size(frame)
     return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths,
-                       score_path=lambda p, y, burial=None: path_score(frame, p, y, options, size, burial))
+                       score_path=lambda p, y, burial=None: path_score(frame, p, y, options, rank.size, burial))
 
 
 def path_score(frame: TrackFrame, pings: np.ndarray, path_y: np.ndarray, options: LineOptions, size: SearchSize,
@@ -244,8 +243,9 @@ def path_score(frame: TrackFrame, pings: np.ndarray, path_y: np.ndarray, options
     # burial is the line's, where every detection's median is the clutter's; far out the detections' burials
     # stray from the target's)
     burials = [] if burial is None else [burial]
-    burials += [line_burial(frame.b[near[frame.cf[near] >= lv]], frame.b_sigma[near[frame.cf[near] >= lv]])[0]
-                for lv in CF_LEVELS if np.count_nonzero(frame.cf[near] >= lv) >= 3]
+    for strong in (near[frame.cf[near] >= level] for level in CF_LEVELS):
+        if strong.size >= 3:
+            burials.append(line_burial(frame.b[strong], frame.b_sigma[strong])[0])
     return max((_path_score_at(frame, near, (first, last), y_ext, float(b), options, size) for b in burials),
                default=-math.inf)
 
@@ -440,8 +440,8 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
 
 def line_ranker(frame: TrackFrame, options: LineOptions):
     """``rank(track) -> score``: a track's score (:func:`_score` on its path, :func:`~clbeam.survey.lines.
-    line_path`, and burial, against the search's extent in ``frame``), remembered by its detections with the
-    path (``rank.path(track)``); what :func:`~clbeam.survey.lines.find_tracks` chooses tracks by."""
+    line_path`, and burial, against the search's extent in ``frame``, ``rank.size``), remembered by its detections
+    with the path (``rank.path(track)``); what :func:`~clbeam.survey.lines.find_tracks` chooses tracks by."""
     size = _search_size(frame)
     memo = {}
 
@@ -456,6 +456,7 @@ def line_ranker(frame: TrackFrame, options: LineOptions):
     def rank(tr: Track) -> float:
         return scored(tr)[0]
     rank.path = lambda tr: scored(tr)[1].copy()
+    rank.size = size
     return rank
 
 

@@ -150,11 +150,12 @@ def finalize_survey(output, options: SurveyOptions, *, failures=(), inputs=None)
     """Build the survey products from the ledger of ``output``.
 
     Reads the ledger twice, one ping at a time: first the navigation and the detections above the map
-    threshold (the only survey-wide arrays kept: about 200 bytes per detection and 4 per peak), which are
-    associated into objects; then every peak, georeferenced and written to the Zarr group ``peaks``, the CSV
-    and the GeoJSON.  Each text product is written under a temporary name and renamed; the store's per-ping
-    variables (navigation, time, grid centre, source, sound speed, ``imaged``, ``n_peaks``) and attributes
-    (with the sonar's ``pulse_band_hz`` and ``array_width_m``, as in an image file) are updated.
+    threshold (the only survey-wide arrays kept: about 200 bytes per detection and 12 per peak, the peaks'
+    positions kept for the seabed pooled over pings), which are associated into objects; then every peak,
+    georeferenced and written to the Zarr group ``peaks``, the CSV and the GeoJSON.  Each text product is
+    written under a temporary name and renamed; the store's per-ping variables (navigation, time, grid centre,
+    source, sound speed, ``imaged``, ``n_peaks``) and attributes (with the sonar's ``pulse_band_hz`` and
+    ``array_width_m``, as in an image file) are updated.
 
     Parameters
     ----------
