@@ -18,13 +18,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LINE_KINDS re-exported)
-from clbeam.survey.burial import ARC_SIGMA_RAD, SEABED_SE_M, SPECULAR_K_SIGMA, arc_constrained, specular_fit
+from clbeam.survey.burial import ARC_SIGMA_RAD, BURIAL_MODEL_SE_M, SEABED_SE_M, SPECULAR_K_SIGMA, arc_constrained, specular_fit
 from clbeam.survey.edges import edges_from_nearest_point
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
 from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, line_path, smear_half_width
-from clbeam.survey.specular import fading_fit, fading_floor_db, offsets_at_depth, specular_crossing
+from clbeam.survey.specular import fading_fit, fading_floor_db, offsets_at_depth, specular_crossing, specular_image
 
 log = logging.getLogger(__name__)
 
@@ -200,7 +200,7 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level, probe), nav, scaled))
                  for tr in tracks]
     kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
-                               (rank, level))
+                               (rank, level), (sb, centre_yz))
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
         row["line"] = len(rows)
@@ -277,6 +277,8 @@ SHADOW_BEAMS = 2.0
 #: column lies 13.3 dB down, the main lobe's edge less: at 10 two tracks 6.4-6.6 dB down, 1.3-3.4 m deeper and
 #: 8-11 m beside crossing pipes of the discrete tuning draws family:1 and family:6 were false pipeline lines)
 SHADOW_DB = 6.0
+#: a line within this much of a better line's specular image in depth (m) is that image (:func:`_on_image`)
+IMAGE_DEPTH_M = 1.0
 #: a smooth pipe whose nearest point lies up to this many beam widths off the ping's plane (the pattern's second
 #: null) is still seen, through the main lobe's edge or the first sidelobe, its echo ``dz`` deeper than the pipe:
 #: a line at such a heading that its burials do not show to be rough has ``dz / 2`` added to its burial's error
@@ -287,10 +289,12 @@ SMOOTH_SEEN_BEAMS = 2.0
 SPECULAR_PASSES = 2
 
 
-def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions, ranked: tuple) -> list:
-    """The lines less those that shadow a better one, in line order (:func:`_shadows`).  ``ranked``: the
-    :func:`line_ranker` the lines were found with and the detections' intensities (dB, or ``None``).  Better:
-    the higher score, and of equal scores (long lines with a detection in every ping reach the same) the higher
+def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions, ranked: tuple,
+                        geometry: tuple) -> list:
+    """The lines less those that shadow a better one (:func:`_shadows`) or lie on its specular image
+    (:func:`_on_image`), in line order.  ``ranked``: the :func:`line_ranker` the lines were found with and the
+    detections' intensities (dB, or ``None``); ``geometry``: the pings' seabeds and grid centres.  Better: the
+    higher score, and of equal scores (long lines with a detection in every ping reach the same) the higher
     mean level: the echo, not its range sidelobes (the seabed's nadir echo has peaks 0.26 and 1.26 m above it,
     18 and 31 dB down, with CF near 1).  Each line is compared as reported and as its echoes lie
     (:func:`_faces`): a specular line's detections are not where its moved path is."""
@@ -298,9 +302,11 @@ def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions
     loud = [_mean_level(level, d[0].members) for d in described]
     order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
     faces = [_faces(frame, d, rank, options) for d in described]
+    images = [_image_face(frame, d, faces[i][0], geometry) for i, d in enumerate(described)]
     kept = []
     for i in order:
-        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i]) for j in kept):
+        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i]) or _on_image(faces[i], images[j])
+                   for j in kept):
             kept.append(i)
     return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
 
@@ -319,6 +325,41 @@ def _faces(frame: TrackFrame, line: tuple, rank, options: LineOptions) -> tuple:
     if not row["specular"]:
         return (reported,)
     return reported, face(rank.path(tr), line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0])
+
+
+def _image_face(frame: TrackFrame, line: tuple, reported: tuple, geometry: tuple) -> tuple | None:
+    """Where a line that is not taken as specular would show its specular image (:func:`clbeam.survey.specular.
+    specular_image`, from its path's heading and depth), as a face (:func:`_faces`: its burials per ping, the
+    line's gate); ``None`` but for a ``pipeline`` line that is not specular (a specular line's echoes' face is
+    its image) and has a seabed."""
+    tr, row, *_ = line
+    pings, y, burial, gate, _ = reported
+    s_ext = frame.ping_s[tr.first:tr.last + 1]
+    if (row["kind"] != "pipeline" or row["specular"] or not math.isfinite(burial) or pings.size < 2
+            or np.ptp(s_ext) <= 0):
+        return None
+    sb, centre_yz = geometry
+    z = sb[pings, 0] + sb[pings, 1] * y + burial
+    y_img, z_img = specular_image(y, z, np.gradient(y, s_ext), centre_yz[pings])
+    return pings, y_img, z_img - (sb[pings, 0] + sb[pings, 1] * y_img), gate, 0.0
+
+
+def _on_image(line: tuple, image: tuple | None) -> bool:
+    """Whether ``line`` (its :func:`_faces`) lies on a better line's specular image (:func:`_image_face`): over
+    at least half its pings within two gates of it across the track and within :data:`IMAGE_DEPTH_M` of its
+    depth there.  A rough pipe at a heading echoes both where it crosses the plane and, specularly, from its
+    nearest point off the plane (nearer the ship and deeper): one pipe, two tracks."""
+    if image is None:
+        return False
+    for pings, y, burial, gate, _ in line:
+        _, a, b = np.intersect1d(pings, image[0], return_indices=True)
+        if a.size == 0 or not math.isfinite(burial):
+            continue
+        near = np.abs(y[a] - image[1][b]) <= 2 * max(gate, image[3])
+        if (np.count_nonzero(near) >= 0.5 * pings.size
+                and abs(burial - float(np.nanmedian(image[2][b]))) <= IMAGE_DEPTH_M):
+            return True
+    return False
 
 
 def _shadows(line: tuple, better: tuple, weaker_db: float) -> bool:
@@ -421,9 +462,11 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
         path_y = spec["path_y"]
         if math.isfinite(spec["burial_m"]):
             burial, burial_se = spec["burial_m"], spec["burial_error_m"]
-    # the seabed's own error at the line adds to the burial's (measured, kind and resolution alike)
-    measured = (measured[0], math.hypot(measured[1], SEABED_SE_M))
-    burial_se = math.hypot(burial_se, SEABED_SE_M)
+    # the seabed's own error at the line and the reading's model error add to the burial's (measured, kind and
+    # resolution alike)
+    floor = math.hypot(SEABED_SE_M, BURIAL_MODEL_SE_M)
+    measured = (measured[0], math.hypot(measured[1], floor))
+    burial_se = math.hypot(burial_se, floor)
     resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
     z_line = sb[ext, 0] + sb[ext, 1] * path_y + (burial if math.isfinite(burial) else 0.0)
     angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))

@@ -95,6 +95,38 @@ def specular_crossing(echo_y, s_m, centre_y, at_s, half_width_m: float) -> np.nd
     return centre + crossing_offset(u, u1, u2)
 
 
+def specular_image(crossing_y, crossing_z, slope, centre_yz) -> tuple[np.ndarray, np.ndarray]:
+    """Where a straight smooth pipe's specular echo is imaged in the ping's plane, from where it crosses it.
+
+    The pipe crosses the plane ``D`` across and ``d`` below the grid centre
+    at a heading ``a`` to the track; its nearest point lies ``u = D cos a``
+    from the ship horizontally, ``D sin a cos a`` off the plane, at range
+    ``R = sqrt(u^2 + d^2)``.  The array reads its direction cosine across,
+    ``D cos^2 a / R``, so the echo is imaged ``D cos^2 a`` across (``D
+    sin^2 a`` nearer the ship) and ``sqrt(d^2 + (D sin a cos a)^2)`` down:
+    deeper by the nearest point's distance off the plane.
+
+    Parameters
+    ----------
+    crossing_y, crossing_z : array_like
+        ``(n,)`` the crossing's offset across the track and depth (m).
+    slope : array_like
+        ``(n,)`` ``tan a``, the pipe's offset change per metre along the track.
+    centre_yz : array_like
+        ``(n, 2)`` the pings' grid centres (m).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        ``(n,)`` the image's offset across and depth (m).
+    """
+    y, z, t = (np.asarray(v, dtype=np.float64) for v in (crossing_y, crossing_z, slope))
+    c = np.asarray(centre_yz, dtype=np.float64).reshape(-1, 2)
+    cos2 = 1.0 / (1.0 + t * t)
+    big_d, d = y - c[:, 0], z - c[:, 1]
+    return c[:, 0] + big_d * cos2, c[:, 1] + np.sqrt(d * d + big_d * big_d * t * t * cos2 * cos2)
+
+
 def offsets_at_depth(range_m, y_m, centre_yz_m, seabed, burial_m: float) -> np.ndarray:
     """Echoes moved along their arcs to a pipe's depth, from their slant ranges alone.
 
