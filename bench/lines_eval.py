@@ -116,7 +116,8 @@ def split_summary(split: str, scored: list, clutter_km: float, clutter_false: in
            f"<= {POSITION_TARGET_M} m {np.sum(pos <= POSITION_TARGET_M)}, worst {worst:.2f} m; "
            f"burial within {BURIAL_TARGET_M} m {np.sum(np.abs(bur) <= BURIAL_TARGET_M)} "
            f"({100 * np.mean(np.abs(bur) <= BURIAL_TARGET_M):.0f} %), within two reported standard errors "
-           f"{covered.sum()} ({100 * covered.mean():.0f} %, nominal 95 %)"]
+           f"{covered.sum()} ({100 * covered.mean():.0f} %, nominal 95 %; of the {np.isfinite(bur).sum()} with a line "
+           f"{100 * covered.sum() / max(np.isfinite(bur).sum(), 1):.0f} %)"]
     if unseen:
         out.append(f"{split}: of these, {len(unseen)} with no more pings with a detection near them than their "
                    f"copies {' and '.join(f'{d:g}' for d in sorted({abs(v) for v in CHANCE_OFFSETS_M}))} m beyond its "
@@ -127,6 +128,9 @@ def split_summary(split: str, scored: list, clutter_km: float, clutter_false: in
                    f"{np.sum(np.abs(bur[seen]) <= BURIAL_TARGET_M)}, within two reported standard errors "
                    f"{covered[seen].sum()}")
     out.append(_trackable_summary(split, rows, on, np.abs(bur) <= BURIAL_TARGET_M))
+    doubled = [f"{r.get('scene', '')} {r['target']} ({r['fragments']})" for r in rows if r["fragments"] > 1]
+    out.append(f"{split}: {len(doubled)} pipeline(s) with more than one pipeline line along them (duplicates, "
+               f"images, fragments): {', '.join(doubled) or 'none'}")
     if clutter_km > 0:
         out.append(f"{split}: {clutter_false} false pipeline line(s) over {clutter_km:.2f} km of clutter-only survey "
                    f"({clutter_false / clutter_km:.2f} per km)")
