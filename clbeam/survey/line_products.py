@@ -200,7 +200,7 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level, probe), nav, scaled))
                  for tr in tracks]
     kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
-                               (rank, level), (sb, centre_yz))
+                               (rank, level), (sb, centre_yz, scaled))
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
         row["line"] = len(rows)
@@ -277,8 +277,13 @@ SHADOW_BEAMS = 2.0
 #: column lies 13.3 dB down, the main lobe's edge less: at 10 two tracks 6.4-6.6 dB down, 1.3-3.4 m deeper and
 #: 8-11 m beside crossing pipes of the discrete tuning draws family:1 and family:6 were false pipeline lines)
 SHADOW_DB = 6.0
-#: a line within this much of a better line's specular image in depth (m) is that image (:func:`_on_image`)
+#: a line whose detections lie within this much of a better line's specular image in burial (m), and within two
+#: gates across, is that image (:func:`_on_image`; the tuning draw family:24's B: 0.2 m on average)
 IMAGE_DEPTH_M = 1.0
+#: ... where the image's nearest point lies within this many beam widths (``lambda / L``) of the ping's plane: a
+#: smooth pipe's specular echo, far stronger than a diffuse one, is seen through the transmit pattern's second
+#: sidelobe (17.8 dB down, 2.46 widths off), out to its third null (family:24's B: 2.1-2.3 widths)
+IMAGE_SEEN_BEAMS = 3.0
 #: a smooth pipe whose nearest point lies up to this many beam widths off the ping's plane (the pattern's second
 #: null) is still seen, through the main lobe's edge or the first sidelobe, its echo ``dz`` deeper than the pipe:
 #: a line at such a heading that its burials do not show to be rough has ``dz / 2`` added to its burial's error
@@ -293,19 +298,22 @@ def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions
                         geometry: tuple) -> list:
     """The lines less those that shadow a better one (:func:`_shadows`) or lie on its specular image
     (:func:`_on_image`), in line order.  ``ranked``: the :func:`line_ranker` the lines were found with and the
-    detections' intensities (dB, or ``None``); ``geometry``: the pings' seabeds and grid centres.  Better: the
-    higher score, and of equal scores (long lines with a detection in every ping reach the same) the higher
-    mean level: the echo, not its range sidelobes (the seabed's nadir echo has peaks 0.26 and 1.26 m above it,
-    18 and 31 dB down, with CF near 1).  Each line is compared as reported and as its echoes lie
-    (:func:`_faces`): a specular line's detections are not where its moved path is."""
+    detections' intensities (dB, or ``None``); ``geometry``: the pings' seabeds and grid centres and whether the
+    along-track distance is known (without it no heading, no image).  Better: the higher score, and of equal
+    scores (long lines with a detection in every ping reach the same) the higher mean level: the echo, not its
+    range sidelobes (the seabed's nadir echo has peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near
+    1).  Each line is compared as reported and as its echoes lie (:func:`_faces`): a specular line's detections
+    are not where its moved path is."""
     rank, level = ranked
     loud = [_mean_level(level, d[0].members) for d in described]
     order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
     faces = [_faces(frame, d, rank, options) for d in described]
-    images = [_image_face(frame, d, faces[i][0], geometry) for i, d in enumerate(described)]
+    images = [_image_face(frame, d, faces[i][0], geometry, options) for i, d in enumerate(described)]
     kept = []
     for i in order:
-        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i]) or _on_image(faces[i], images[j])
+        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i])
+                   or (described[i][1]["score"] < described[j][1]["score"]
+                       and _on_image(frame, described[i][0].members, faces[i][0][3], images[j]))
                    for j in kept):
             kept.append(i)
     return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
@@ -327,39 +335,44 @@ def _faces(frame: TrackFrame, line: tuple, rank, options: LineOptions) -> tuple:
     return reported, face(rank.path(tr), line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0])
 
 
-def _image_face(frame: TrackFrame, line: tuple, reported: tuple, geometry: tuple) -> tuple | None:
-    """Where a line that is not taken as specular would show its specular image (:func:`clbeam.survey.specular.
-    specular_image`, from its path's heading and depth), as a face (:func:`_faces`: its burials per ping, the
-    line's gate); ``None`` but for a ``pipeline`` line that is not specular (a specular line's echoes' face is
-    its image) and has a seabed."""
+def _image_face(frame: TrackFrame, line: tuple, reported: tuple, geometry: tuple, options: LineOptions
+                ) -> tuple | None:
+    """Where a ``pipeline`` line that is not taken as specular would show its specular image, were its pipe
+    smooth (:func:`clbeam.survey.specular.specular_image`, from its path's heading and depth): ``(pings, y,
+    burial, gate, seen)`` per ping of its extent, ``seen`` where the nearest point lies within
+    :data:`IMAGE_SEEN_BEAMS` beam widths of the ping's plane (further out the echo is not seen).  ``None`` for
+    other lines (a specular line's echoes' face is its image), without a seabed or an along-track distance."""
     tr, row, *_ = line
     pings, y, burial, gate, _ = reported
+    sb, centre_yz, scaled = geometry
     s_ext = frame.ping_s[tr.first:tr.last + 1]
-    if (row["kind"] != "pipeline" or row["specular"] or not math.isfinite(burial) or pings.size < 2
-            or np.ptp(s_ext) <= 0):
+    if (not scaled or row["kind"] != "pipeline" or row["specular"] or not math.isfinite(burial)
+            or pings.size < 2 or np.ptp(s_ext) <= 0):
         return None
-    sb, centre_yz = geometry
     z = sb[pings, 0] + sb[pings, 1] * y + burial
-    y_img, z_img = specular_image(y, z, np.gradient(y, s_ext), centre_yz[pings])
-    return pings, y_img, z_img - (sb[pings, 0] + sb[pings, 1] * y_img), gate, 0.0
+    slope = np.gradient(y, s_ext)
+    y_img, z_img = specular_image(y, z, slope, centre_yz[pings])
+    across, down = y - centre_yz[pings, 0], z - centre_yz[pings, 1]
+    off = np.abs(across * slope) / (1 + slope ** 2) / np.hypot(across / np.sqrt(1 + slope ** 2), down)
+    seen = off <= IMAGE_SEEN_BEAMS * math.radians(options.beam_width_deg)
+    return pings, y_img, z_img - (sb[pings, 0] + sb[pings, 1] * y_img), gate, seen
 
 
-def _on_image(line: tuple, image: tuple | None) -> bool:
-    """Whether ``line`` (its :func:`_faces`) lies on a better line's specular image (:func:`_image_face`): over
-    at least half its pings within two gates of it across the track and within :data:`IMAGE_DEPTH_M` of its
-    depth there.  A rough pipe at a heading echoes both where it crosses the plane and, specularly, from its
-    nearest point off the plane (nearer the ship and deeper): one pipe, two tracks."""
+def _on_image(frame: TrackFrame, members: np.ndarray, gate: float, image: tuple | None) -> bool:
+    """Whether a line's detections (``members``; ``gate``, its gate across, m) lie on a better line's specular
+    image (:func:`_image_face`): at least half of them where the image is seen, within two gates of it across
+    the track and within :data:`IMAGE_DEPTH_M` of its burial in their own pings.  A rough pipe at a heading
+    echoes both where it crosses the plane and, specularly, from its nearest point off the plane (nearer the
+    ship and deeper): one pipe, two tracks."""
     if image is None:
         return False
-    for pings, y, burial, gate, _ in line:
-        _, a, b = np.intersect1d(pings, image[0], return_indices=True)
-        if a.size == 0 or not math.isfinite(burial):
-            continue
-        near = np.abs(y[a] - image[1][b]) <= 2 * max(gate, image[3])
-        if (np.count_nonzero(near) >= 0.5 * pings.size
-                and abs(burial - float(np.nanmedian(image[2][b]))) <= IMAGE_DEPTH_M):
-            return True
-    return False
+    pings, y_img, b_img, gate_img, seen = image
+    k = np.clip(np.searchsorted(pings, frame.ping[members]), 0, pings.size - 1)
+    on = (pings[k] == frame.ping[members]) & seen[k]
+    with np.errstate(invalid="ignore"):
+        near = on & (np.abs(frame.y[members] - y_img[k]) <= 2 * max(gate, gate_img)) \
+            & (np.abs(frame.b[members] - b_img[k]) <= IMAGE_DEPTH_M)
+    return bool(np.count_nonzero(near) >= 0.5 * members.size)
 
 
 def _shadows(line: tuple, better: tuple, weaker_db: float) -> bool:
@@ -737,7 +750,8 @@ def line_kind(burial_m: float, burial_se_m: float, nadir_angle_deg: float, optio
     it, by three standard errors when the burial is not resolved (above
     ``burial_resolution_m``: near endfire a peak slides metres along its
     arc) and ``3 se * se / burial_resolution_m`` when it is (0.9 m at
-    0.39 m, 0.06 m at 0.1 m; no jump at the resolution).  Otherwise
+    0.39 m, 0.5 m at 0.29 m, the least a line reports; no jump at the
+    resolution).  Otherwise
     ``water`` (above) or ``subbottom`` (deeper).  Within
     ``nadir_angle_deg`` of nadir a line is never a pipeline: a buried
     line there cannot be told from a horizon's specular echo and its

@@ -96,15 +96,16 @@ def specular_crossing(echo_y, s_m, centre_y, at_s, half_width_m: float) -> np.nd
 
 
 def specular_image(crossing_y, crossing_z, slope, centre_yz) -> tuple[np.ndarray, np.ndarray]:
-    """Where a straight smooth pipe's specular echo is imaged in the ping's plane, from where it crosses it.
+    """Where a straight, level smooth pipe's specular echo is imaged in the ping's plane, from where it
+    crosses it.
 
     The pipe crosses the plane ``D`` across and ``d`` below the grid centre
-    at a heading ``a`` to the track; its nearest point lies ``u = D cos a``
-    from the ship horizontally, ``D sin a cos a`` off the plane, at range
-    ``R = sqrt(u^2 + d^2)``.  The array reads its direction cosine across,
-    ``D cos^2 a / R``, so the echo is imaged ``D cos^2 a`` across (``D
-    sin^2 a`` nearer the ship) and ``sqrt(d^2 + (D sin a cos a)^2)`` down:
-    deeper by the nearest point's distance off the plane.
+    at a heading ``a`` to the track, level (at one depth along its length);
+    its nearest point lies ``u = D cos a`` from the ship horizontally,
+    ``x = D sin a cos a`` off the plane, at range ``R = sqrt(u^2 + d^2)``.
+    The array reads its direction cosine across, ``D cos^2 a / R``, so the
+    echo is imaged ``D cos^2 a`` across (``D sin^2 a`` nearer the ship) and
+    ``sqrt(d^2 + x^2)`` down, ``sqrt(d^2 + x^2) - d`` deeper than the pipe.
 
     Parameters
     ----------

@@ -18,9 +18,12 @@ C, LENGTH, F_C = 1500.0, 3.5, 5500.0
 BEAM = C / F_C / LENGTH  # lambda / L at the band's centre (rad)
 
 
-def _lines(det: LineDetections, depth: float, n: int):
-    """:func:`survey_lines` without navigation, the grid centres at the surface, a flat seabed ``depth`` deep."""
-    nav = SurveyNavigation(n, None)
+def _lines(det: LineDetections, depth: float, n: int, timed: bool = False):
+    """:func:`survey_lines` without navigation, the grid centres at the surface, a flat seabed ``depth`` deep;
+    ``timed``: pings 4 s apart at 2.05 m/s (8.2 m: the along-track distance known)."""
+    nav = SurveyNavigation(n, 2.05 if timed else None)
+    if timed:
+        nav.time_s[:] = 4.0 * np.arange(n)
     imaged = np.ones(n, dtype=bool)
     nav.finish(imaged)
     return survey_lines(det, np.tile([depth, 0.0], (n, 1)), np.zeros((n, 2)), imaged, nav, LineOptions())
@@ -162,38 +165,62 @@ def _nearest_point_image(y_c: float, z_c: float, heading_rad: float) -> tuple[fl
     return float(py[i]), math.sqrt(r * r - py[i] ** 2)
 
 
-def _crossing_and_image(rng, image_shift_m: float, n: int = 30, heading_deg: float = 13.5, depth: float = 80.0):
+def _crossing_and_second(rng, second, present=range(5, 15), timed: bool = True, n: int = 30,
+                         heading_deg: float = 13.5, depth: float = 80.0):
     """A rough pipe at ``heading_deg`` crossing 120 m out, 0.5 m below a flat seabed ``depth`` deep: its diffuse
-    echo where it crosses each ping's plane, and in 10 of the pings its specular echo from the nearest point
-    (:func:`_nearest_point_image`, 2 dB weaker, 0.3 m of depth noise: too few and too noisy for the burials' fit
-    to call it specular) moved ``image_shift_m`` outwards; seabed clutter."""
+    echo where it crosses each ping's plane, and in the pings ``present`` a second echo ``second(y_c, z_c, a)
+    -> (y, z)`` (2 dB weaker, 0.3 m of depth noise); seabed clutter.  ``timed``: the along-track distance known."""
     a = math.radians(heading_deg)
     ping, y, z, cf, level = [], [], [], [], []
     for k in range(n):
         y_c, z_c = 120.0 + 8.2 * k * math.tan(a), depth + 0.5
-        y_i, z_i = _nearest_point_image(y_c, z_c, a)
-        second = 5 <= k < 15
+        y_2, z_2 = second(y_c, z_c, a)
+        two = k in present
         n_c = rng.poisson(0.01 * 300)
-        ping += [k] * (1 + second + n_c)
-        y += [y_c + rng.normal(0, 0.3)] + [y_i + image_shift_m + rng.normal(0, 0.3)] * second
-        y += list(rng.uniform(-300, 300, n_c))
-        z += [z_c + rng.normal(0, 0.1)] + [z_i + rng.normal(0, 0.3)] * second + list(depth + rng.uniform(-2, 25, n_c))
-        cf += list(rng.uniform(0.6, 0.8, 1 + second)) + list(rng.uniform(0.4, 0.6, n_c))
-        level += [-70.0] + [-72.0] * second + list(rng.uniform(-95, -85, n_c))
+        ping += [k] * (1 + two + n_c)
+        y += [y_c + rng.normal(0, 0.3)] + [y_2 + rng.normal(0, 0.3)] * two + list(rng.uniform(-300, 300, n_c))
+        z += [z_c + rng.normal(0, 0.1)] + [z_2 + rng.normal(0, 0.3)] * two + list(depth + rng.uniform(-2, 25, n_c))
+        cf += list(rng.uniform(0.6, 0.8, 1 + two)) + list(rng.uniform(0.4, 0.6, n_c))
+        level += [-70.0] + [-72.0] * two + list(rng.uniform(-95, -85, n_c))
     ping, y, z, cf, level = (np.asarray(v) for v in (ping, y, z, cf, level))
-    return _lines(LineDetections(ping=ping, y=y, z=z, cf=cf, intensity_db=level), depth, n)
+    return _lines(LineDetections(ping=ping, y=y, z=z, cf=cf, intensity_db=level), depth, n, timed=timed)
+
+
+def _image_moved(shift_m: float):
+    """The second echo: the pipe's specular image (:func:`_nearest_point_image`) moved ``shift_m`` outwards."""
+    def second(y_c, z_c, a):
+        y_i, z_i = _nearest_point_image(y_c, z_c, a)
+        return y_i + shift_m, z_i
+    return second
 
 
 @pytest.mark.parametrize("seed", range(3))
 def test_a_rough_pipes_specular_image_is_no_second_line(seed):
-    """A rough pipe at 13.5 degrees, 120 m out in 80 m of water, echoes where it crosses the plane and from its
-    nearest point 29-34 m off it, imaged 7-8 m nearer the ship and 5-7 m deeper (brute force): one pipeline line,
-    at the crossing and its burial (without the image rule, two); the same second track 6 m further out (no
-    image there) stays a line."""
-    pipes = [r for r in _crossing_and_image(np.random.default_rng(seed), 0.0).rows if r["kind"] == "pipeline"]
+    """A rough pipe at 13.5 degrees, 120 m out in 80 m of water, echoes where it crosses the plane and, in 10
+    pings, from its nearest point 29-34 m off it (2.5-2.6 beam widths: through the transmit pattern's second
+    sidelobe), imaged 7-8 m nearer the ship and 5-7 m deeper (brute force), too few and too noisy for the
+    burials' fit to call specular: one pipeline line, at the crossing and its burial (without the image rule,
+    two); the same second track 6 m further out (no image there) stays a line, and so does the image itself
+    where the along-track distance is unknown (no heading to place an image by)."""
+    pipes = [r for r in _crossing_and_second(np.random.default_rng(seed), _image_moved(0.0)).rows
+             if r["kind"] == "pipeline"]
     assert len(pipes) == 1
     mean_y = 120.0 + np.mean(8.2 * np.arange(30)) * math.tan(math.radians(13.5))
     assert pipes[0]["mean_y_m"] == pytest.approx(mean_y, abs=0.5)
     assert pipes[0]["burial_m"] == pytest.approx(0.5, abs=0.2)
-    apart = [r for r in _crossing_and_image(np.random.default_rng(seed), 6.0).rows if r["kind"] == "pipeline"]
-    assert len(apart) == 2
+    for lines in (_crossing_and_second(np.random.default_rng(seed), _image_moved(6.0)),
+                  _crossing_and_second(np.random.default_rng(seed), _image_moved(0.0), timed=False)):
+        assert sum(r["kind"] == "pipeline" for r in lines.rows) == 2
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_second_pipe_along_the_image_as_long_as_the_first_stays_a_line(seed):
+    """A real pipe beside the first over its whole length, 7.5 m nearer the ship and 6 m deeper (where the
+    first one's image lies at mid-line, its burial 5-7 m there along the line): as good a line as the first,
+    so no image of it; two pipeline lines, each at its burial."""
+    second = _crossing_and_second(np.random.default_rng(seed), lambda y_c, z_c, a: (y_c - 7.5, z_c + 6.0),
+                                  present=range(30))
+    pipes = sorted((r for r in second.rows if r["kind"] == "pipeline"), key=lambda r: r["mean_y_m"])
+    assert len(pipes) == 2
+    assert pipes[0]["burial_m"] == pytest.approx(6.5, abs=0.3)
+    assert pipes[1]["burial_m"] == pytest.approx(0.5, abs=0.2)
