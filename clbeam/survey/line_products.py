@@ -351,10 +351,8 @@ def _image_face(frame: TrackFrame, line: tuple, reported: tuple, geometry: tuple
         return None
     z = sb[pings, 0] + sb[pings, 1] * y + burial
     slope = np.gradient(y, s_ext)
-    y_img, z_img = specular_image(y, z, slope, centre_yz[pings])
-    across, down = y - centre_yz[pings, 0], z - centre_yz[pings, 1]
-    off = np.abs(across * slope) / (1 + slope ** 2) / np.hypot(across / np.sqrt(1 + slope ** 2), down)
-    seen = off <= IMAGE_SEEN_BEAMS * math.radians(options.beam_width_deg)
+    y_img, z_img, off = specular_image(y, z, slope, centre_yz[pings])
+    seen = off <= math.sin(IMAGE_SEEN_BEAMS * math.radians(options.beam_width_deg))
     return pings, y_img, z_img - (sb[pings, 0] + sb[pings, 1] * y_img), gate, seen
 
 

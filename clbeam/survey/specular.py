@@ -95,9 +95,9 @@ def specular_crossing(echo_y, s_m, centre_y, at_s, half_width_m: float) -> np.nd
     return centre + crossing_offset(u, u1, u2)
 
 
-def specular_image(crossing_y, crossing_z, slope, centre_yz) -> tuple[np.ndarray, np.ndarray]:
+def specular_image(crossing_y, crossing_z, slope, centre_yz) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where a straight, level smooth pipe's specular echo is imaged in the ping's plane, from where it
-    crosses it.
+    crosses it, and how far off the plane its nearest point lies.
 
     The pipe crosses the plane ``D`` across and ``d`` below the grid centre
     at a heading ``a`` to the track, level (at one depth along its length);
@@ -118,14 +118,16 @@ def specular_image(crossing_y, crossing_z, slope, centre_yz) -> tuple[np.ndarray
 
     Returns
     -------
-    (numpy.ndarray, numpy.ndarray)
-        ``(n,)`` the image's offset across and depth (m).
+    (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        ``(n,)`` the image's offset across and depth (m), and ``|x| / R``, the sine of the angle off the
+        ping's plane at which the source sees the nearest point.
     """
     y, z, t = (np.asarray(v, dtype=np.float64) for v in (crossing_y, crossing_z, slope))
     c = np.asarray(centre_yz, dtype=np.float64).reshape(-1, 2)
     cos2 = 1.0 / (1.0 + t * t)
     big_d, d = y - c[:, 0], z - c[:, 1]
-    return c[:, 0] + big_d * cos2, c[:, 1] + np.sqrt(d * d + big_d * big_d * t * t * cos2 * cos2)
+    x = big_d * t * cos2
+    return c[:, 0] + big_d * cos2, c[:, 1] + np.sqrt(d * d + x * x), np.abs(x) / np.sqrt(big_d * big_d * cos2 + d * d)
 
 
 def offsets_at_depth(range_m, y_m, centre_yz_m, seabed, burial_m: float) -> np.ndarray:

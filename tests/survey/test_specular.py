@@ -441,8 +441,8 @@ def test_a_specular_lines_pulse_tail_along_its_echoes_is_no_second_line():
 @pytest.mark.parametrize("seed", range(3))
 def test_the_specular_image_is_where_the_array_sees_the_nearest_point(seed):
     """:func:`specular_image` against brute force: a straight pipe at a random heading and crossing, its point
-    nearest the source found on a 1 mm grid along it, imaged at its range and its direction cosine across
-    (grid centres off the origin)."""
+    nearest the source found on a 1 mm grid along it, imaged at its range and its direction cosine across,
+    and its angle off the plane (grid centres off the origin)."""
     rng = np.random.default_rng(seed)
     for _ in range(5):
         a, cy, cz = rng.uniform(-0.6, 0.6), rng.uniform(-5, 5), rng.uniform(2, 8)
@@ -451,6 +451,8 @@ def test_the_specular_image_is_where_the_array_sees_the_nearest_point(seed):
         px, py = t * np.cos(a), y_c - cy + t * np.sin(a)
         i = int(np.argmin(px * px + py * py))
         r = np.sqrt(px[i] ** 2 + py[i] ** 2 + (z_c - cz) ** 2)
-        y_i, z_i = specular_image([y_c], [z_c], [np.tan(a)], [[cy, cz]])
+        y_i, z_i, off = specular_image([y_c], [z_c], [np.tan(a)], [[cy, cz]])
+        # a 1 mm grid puts the nearest point at most 0.5 mm along the pipe from the true one
         assert y_i[0] == pytest.approx(cy + py[i], abs=1e-3)
         assert z_i[0] == pytest.approx(cz + np.sqrt(r * r - py[i] ** 2), abs=1e-3)
+        assert off[0] == pytest.approx(abs(px[i]) / r, abs=1e-5)
