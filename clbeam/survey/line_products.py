@@ -21,10 +21,11 @@ from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LI
 from clbeam.survey.burial import ARC_SIGMA_RAD, BURIAL_MODEL_SE_M, SEABED_SE_M, SPECULAR_K_SIGMA, arc_constrained, specular_fit
 from clbeam.survey.edges import edges_from_nearest_point
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
+from clbeam.survey.line_duplicates import effective_gates, without_duplicates
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
-from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, line_path, smear_half_width
-from clbeam.survey.specular import fading_fit, fading_floor_db, offsets_at_depth, specular_crossing, specular_image
+from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, line_path
+from clbeam.survey.specular import fading_fit, fading_floor_db, offsets_at_depth, specular_crossing
 
 log = logging.getLogger(__name__)
 
@@ -199,8 +200,9 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     probe = None if det.edge_probe is None else (lambda members: det.edge_probe(order[members]))
     described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level, probe), nav, scaled))
                  for tr in tracks]
-    kept = _without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
-                               (rank, level), (sb, centre_yz, scaled))
+    kept = without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
+                              (rank, level), (sb, centre_yz, scaled),
+                              lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled)))
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
         row["line"] = len(rows)
@@ -269,21 +271,6 @@ def _path_score_at(frame: TrackFrame, near: np.ndarray, extent: tuple, y_ext: np
     return best
 
 
-#: a weaker line alongside a better one within the reach of the better one's transmit smear out to this many
-#: beam widths (``lambda / L``) off the ping's plane (the pattern's second null) is its shadow: a stretch of the
-#: same pipe seen through the transmit pattern's first sidelobe, imaged beside it and deeper
-SHADOW_BEAMS = 2.0
-#: and it is that shadow only when its echoes are at least this much weaker (dB; the first sidelobe of a uniform
-#: column lies 13.3 dB down, the main lobe's edge less: at 10 two tracks 6.4-6.6 dB down, 1.3-3.4 m deeper and
-#: 8-11 m beside crossing pipes of the discrete tuning draws family:1 and family:6 were false pipeline lines)
-SHADOW_DB = 6.0
-#: a line whose detections lie within this much of a better line's specular image in burial (m), and within two
-#: gates across, is that image (:func:`_on_image`; the tuning draw family:24's B: 0.2 m on average)
-IMAGE_DEPTH_M = 1.0
-#: ... where the image's nearest point lies within this many beam widths (``lambda / L``) of the ping's plane: a
-#: smooth pipe's specular echo, far stronger than a diffuse one, is seen through the transmit pattern's second
-#: sidelobe (17.8 dB down, 2.46 widths off), out to its third null (family:24's B: 2.1-2.3 widths)
-IMAGE_SEEN_BEAMS = 3.0
 #: a smooth pipe whose nearest point lies up to this many beam widths off the ping's plane (the pattern's second
 #: null) is still seen, through the main lobe's edge or the first sidelobe, its echo ``dz`` deeper than the pipe:
 #: a line at such a heading that its burials do not show to be rough has ``dz / 2`` added to its burial's error
@@ -293,125 +280,6 @@ SMOOTH_SEEN_BEAMS = 2.0
 #: (:func:`_specular_burial`): the first fit reads the extra depths from echoes moved only part of the way
 SPECULAR_PASSES = 2
 
-
-def _without_duplicates(described: list, frame: TrackFrame, options: LineOptions, ranked: tuple,
-                        geometry: tuple) -> list:
-    """The lines less those that shadow a better one (:func:`_shadows`) or lie on its specular image
-    (:func:`_on_image`), in line order.  ``ranked``: the :func:`line_ranker` the lines were found with and the
-    detections' intensities (dB, or ``None``); ``geometry``: the pings' seabeds and grid centres and whether the
-    along-track distance is known (without it no heading, no image).  Better: the higher score, and of equal
-    scores (long lines with a detection in every ping reach the same) the higher mean level: the echo, not its
-    range sidelobes (the seabed's nadir echo has peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near
-    1).  Each line is compared as reported and as its echoes lie (:func:`_faces`): a specular line's detections
-    are not where its moved path is."""
-    rank, level = ranked
-    loud = [_mean_level(level, d[0].members) for d in described]
-    order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
-    faces = [_faces(frame, d, rank, options) for d in described]
-    images = [_image_face(frame, d, faces[i][0], geometry, options) for i, d in enumerate(described)]
-    kept = []
-    for i in order:
-        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i])
-                   or (described[i][1]["score"] < described[j][1]["score"]
-                       and _on_image(frame, described[i][0].members, faces[i][0][3], images[j]))
-                   for j in kept):
-            kept.append(i)
-    return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
-
-
-def _faces(frame: TrackFrame, line: tuple, rank, options: LineOptions) -> tuple:
-    """A described line's ``(pings, y, burial, gate, reach)`` as reported and, for a specular line, as its
-    echoes lie: the path through its detections (``rank.path``) and their own burial, before the move to the
-    crossings.  ``gate``: the gate across as narrowed for the score about that path (:func:`effective_gates`),
-    ``reach``: its smear's reach (:func:`_smear_reach`), m."""
-    tr, row, (pings, y), *_ = line
-
-    def face(path_y, burial):
-        return (pings, path_y, burial, effective_gates(frame, tr, path_y, options)[0],
-                _smear_reach(frame, tr, path_y, options))
-    reported = face(y, row["burial_m"])
-    if not row["specular"]:
-        return (reported,)
-    return reported, face(rank.path(tr), line_burial(frame.b[tr.members], frame.b_sigma[tr.members])[0])
-
-
-def _image_face(frame: TrackFrame, line: tuple, reported: tuple, geometry: tuple, options: LineOptions
-                ) -> tuple | None:
-    """Where a ``pipeline`` line that is not taken as specular would show its specular image, were its pipe
-    smooth (:func:`clbeam.survey.specular.specular_image`, from its path's heading and depth): ``(pings, y,
-    burial, gate, seen)`` per ping of its extent, ``seen`` where the nearest point lies within
-    :data:`IMAGE_SEEN_BEAMS` beam widths of the ping's plane (further out the echo is not seen).  ``None`` for
-    other lines (a specular line's echoes' face is its image), without a seabed or an along-track distance."""
-    tr, row, *_ = line
-    pings, y, burial, gate, _ = reported
-    sb, centre_yz, scaled = geometry
-    s_ext = frame.ping_s[tr.first:tr.last + 1]
-    if (not scaled or row["kind"] != "pipeline" or row["specular"] or not math.isfinite(burial)
-            or pings.size < 2 or np.ptp(s_ext) <= 0):
-        return None
-    z = sb[pings, 0] + sb[pings, 1] * y + burial
-    slope = np.gradient(y, s_ext)
-    y_img, z_img, off = specular_image(y, z, slope, centre_yz[pings])
-    seen = off <= math.sin(IMAGE_SEEN_BEAMS * math.radians(options.beam_width_deg))
-    return pings, y_img, z_img - (sb[pings, 0] + sb[pings, 1] * y_img), gate, seen
-
-
-def _on_image(frame: TrackFrame, members: np.ndarray, gate: float, image: tuple | None) -> bool:
-    """Whether a line's detections (``members``; ``gate``, its gate across, m) lie on a better line's specular
-    image (:func:`_image_face`): at least half of them where the image is seen, within two gates of it across
-    the track and within :data:`IMAGE_DEPTH_M` of its burial in their own pings.  A rough pipe at a heading
-    echoes both where it crosses the plane and, specularly, from its nearest point off the plane (nearer the
-    ship and deeper): one pipe, two tracks."""
-    if image is None:
-        return False
-    pings, y_img, b_img, gate_img, seen = image
-    k = np.clip(np.searchsorted(pings, frame.ping[members]), 0, pings.size - 1)
-    on = (pings[k] == frame.ping[members]) & seen[k]
-    with np.errstate(invalid="ignore"):
-        near = on & (np.abs(frame.y[members] - y_img[k]) <= 2 * max(gate, gate_img)) \
-            & (np.abs(frame.b[members] - b_img[k]) <= IMAGE_DEPTH_M)
-    return bool(np.count_nonzero(near) >= 0.5 * members.size)
-
-
-def _shadows(line: tuple, better: tuple, weaker_db: float) -> bool:
-    """Whether ``line`` shadows ``better`` (both :func:`_faces`) as reported, or as their echoes lie: over at
-    least half its pings within two gates of it across the track (the wider line's gate, as narrowed for the
-    score, :func:`effective_gates`: a crossing line's smear holds more than one track, while tight lines side
-    by side at a heading are two) and within 3 m in burial (a pulse's tail or a sidelobe of the same pipe); or
-    within two gates plus the better line's reach (its smear out to :data:`SHADOW_BEAMS`, :func:`_smear_reach`),
-    deeper than it and at least :data:`SHADOW_DB` weaker (``weaker_db``: the better one's mean level less its,
-    dB): the same pipe's stretch seen through a transmit sidelobe, off the plane, so further along its range."""
-    pairs = [(line[0], better[0])] + ([(line[-1], better[-1])] if len(line) + len(better) > 2 else [])
-    for (pings, y, burial, gate, _), (p2, y2, burial2, gate2, reach_m) in pairs:
-        _, a, b = np.intersect1d(pings, p2, return_indices=True)
-        dist = np.abs(y[a] - y2[b])
-        two_gates = 2 * max(gate, gate2)
-        same_depth = not (abs(burial - burial2) > 3.0)
-        if np.count_nonzero(dist <= two_gates) >= 0.5 * pings.size and same_depth:
-            return True
-        deeper = burial >= burial2
-        if deeper and weaker_db >= SHADOW_DB and np.count_nonzero(dist <= two_gates + reach_m) >= 0.5 * pings.size:
-            return True
-    return False
-
-
-def _mean_level(level: np.ndarray | None, members: np.ndarray) -> float:
-    """Mean intensity of a line's detections (dB; -inf without levels)."""
-    loud = level[members][np.isfinite(level[members])] if level is not None else np.zeros(0)
-    return float(np.mean(loud)) if loud.size else -math.inf
-
-
-def _smear_reach(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> float:
-    """How far across (m) a line's transmit smear reaches out to :data:`SHADOW_BEAMS` beam widths off the
-    ping's plane: ``SHADOW_BEAMS r beam |tan a|``, the median over its detections (slant range ``r``, the path's
-    slope ``tan a``)."""
-    m = tr.members
-    s_ext = frame.ping_s[tr.first:tr.last + 1]
-    if path_y.size < 2 or np.ptp(s_ext) <= 0:
-        return 0.0
-    k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
-    slope = np.gradient(path_y, s_ext)[k]
-    return float(np.median(2 * SHADOW_BEAMS * smear_half_width(frame, m, slope, options)))
 
 
 def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np.ndarray, pings: np.ndarray,
@@ -490,6 +358,27 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
            "mean_y_m": float(np.mean(path_y)), "mean_z_m": float(np.nanmean(z_line)) if seabed_known else math.nan,
            "detected_fraction": float(m.size / ext.size), "specular": int(spec is not None)}
     return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+
+
+def _moved_to_crossing(frame: TrackFrame, line: tuple, crossing: tuple, where: tuple) -> tuple | None:
+    """A line that is a pipe's specular image moved to the pipe's ``crossing`` line (both as :func:`_describe`
+    gives them, with their tracks): its path shifted across by the median offset of the crossing's path from
+    its own over the pings both span, the crossing's burial (the echoes of the pipe itself, not of its nearest
+    point off the plane, deeper by an amount that depends on the transmit pattern over it) and kind, taken as
+    specular; ``None`` where they share fewer than three pings.  ``where``: the pings' seabeds, the
+    navigation, and whether the along-track distance is known."""
+    sb, nav, scaled = where
+    tr, row, (ext, path_y), *_ = line
+    _, row_c, (ext_c, path_c), *_ = crossing
+    _, a, b = np.intersect1d(ext, ext_c, return_indices=True)
+    if a.size < 3:
+        return None
+    path_y = path_y + float(np.median(path_c[b] - path_y[a]))
+    row = {**row, **{k: row_c[k] for k in ("kind", "burial_m", "burial_std_m", "burial_se_m", "burial_resolved")},
+           "specular": 1, "mean_y_m": float(np.mean(path_y))}
+    if math.isfinite(row["burial_m"]):
+        row["mean_z_m"] = float(np.nanmean(sb[ext, 0] + sb[ext, 1] * path_y + row["burial_m"]))
+    return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
 
 def line_ranker(frame: TrackFrame, options: LineOptions):
@@ -665,33 +554,6 @@ def _fades(frame: TrackFrame, members: np.ndarray, sin_a: np.ndarray, centre_y: 
     return bool(np.isfinite(beta) and np.isfinite(error) and beta > 3 * error
                 and beta >= fading_floor_db(options.beam_width_deg) and fading["span_db"] >= 3.0)
 
-
-def track_gate(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> float:
-    """The mean half-width (m) of the gate across that the track's detections were taken with
-    (:func:`~clbeam.survey.lines.across_gate` at its path's slope: wider with its heading, its peaks' slide
-    along their arcs and a crossing line's smear)."""
-    m = tr.members
-    s_ext = frame.ping_s[tr.first:tr.last + 1]
-    slope = np.gradient(path_y, s_ext) if path_y.size > 1 and np.ptp(s_ext) > 0 else np.zeros(path_y.size)
-    k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
-    return float(np.mean(across_gate(frame, m, slope[k], options)))
-
-
-def effective_gates(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> tuple[float, float]:
-    """The half-widths (m) across and in burial that a chance line must match, for the score.
-
-    The gates the track's detections were taken with, on average
-    (:func:`track_gate`), narrowed to 2.5 times the RMS distance of the
-    detections from the line's path where they lie closer than that (a line
-    tighter than its gate is less likely by chance), never below
-    ``across_gate_m``.
-    """
-    m = tr.members
-    k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
-    fit = 2.5 * float(np.sqrt(np.mean((frame.y[m] - path_y[k]) ** 2)))
-    sig = frame.b_sigma[m]
-    gb = np.maximum(options.burial_gate_m, 2 * np.where(np.isfinite(sig), sig, 0.0))
-    return min(track_gate(frame, tr, path_y, options), max(options.across_gate_m, fit)), float(np.mean(gb))
 
 
 def _world_path(row: dict, pings: np.ndarray, y: np.ndarray, s: np.ndarray, nav: SurveyNavigation,

@@ -11,8 +11,9 @@ from scipy.integrate import quad
 
 from clbeam.survey.burial import smear_deepening_m
 from clbeam.survey.georef import SurveyNavigation
+from clbeam.survey.line_duplicates import SHADOW_BEAMS
 from clbeam.survey.line_options import LineOptions
-from clbeam.survey.line_products import SHADOW_BEAMS, LineDetections, diffuse_shift, survey_lines
+from clbeam.survey.line_products import LineDetections, diffuse_shift, survey_lines
 
 C, LENGTH, F_C = 1500.0, 3.5, 5500.0
 BEAM = C / F_C / LENGTH  # lambda / L at the band's centre (rad)
@@ -166,22 +167,25 @@ def _nearest_point_image(y_c: float, z_c: float, heading_rad: float) -> tuple[fl
 
 
 def _crossing_and_second(rng, second, present=range(5, 15), timed: bool = True, n: int = 30,
-                         heading_deg: float = 13.5, depth: float = 80.0):
+                         heading_deg: float = 13.5, depth: float = 80.0, cfs=((0.6, 0.8), (0.6, 0.8)),
+                         crossing_present=range(30)):
     """A rough pipe at ``heading_deg`` crossing 120 m out, 0.5 m below a flat seabed ``depth`` deep: its diffuse
     echo where it crosses each ping's plane, and in the pings ``present`` a second echo ``second(y_c, z_c, a)
-    -> (y, z)`` (2 dB weaker, 0.3 m of depth noise); seabed clutter.  ``timed``: the along-track distance known."""
+    -> (y, z)`` (2 dB weaker, 0.3 m of depth noise); seabed clutter.  ``timed``: the along-track distance known;
+    ``cfs``: the CFs' ranges of the crossing's and the second echo's detections, the crossing's echo in the
+    pings ``crossing_present``."""
     a = math.radians(heading_deg)
     ping, y, z, cf, level = [], [], [], [], []
     for k in range(n):
         y_c, z_c = 120.0 + 8.2 * k * math.tan(a), depth + 0.5
         y_2, z_2 = second(y_c, z_c, a)
-        two = k in present
+        one, two = k in crossing_present, k in present
         n_c = rng.poisson(0.01 * 300)
-        ping += [k] * (1 + two + n_c)
-        y += [y_c + rng.normal(0, 0.3)] + [y_2 + rng.normal(0, 0.3)] * two + list(rng.uniform(-300, 300, n_c))
-        z += [z_c + rng.normal(0, 0.1)] + [z_2 + rng.normal(0, 0.3)] * two + list(depth + rng.uniform(-2, 25, n_c))
-        cf += list(rng.uniform(0.6, 0.8, 1 + two)) + list(rng.uniform(0.4, 0.6, n_c))
-        level += [-70.0] + [-72.0] * two + list(rng.uniform(-95, -85, n_c))
+        ping += [k] * (one + two + n_c)
+        y += [y_c + rng.normal(0, 0.3)] * one + [y_2 + rng.normal(0, 0.3)] * two + list(rng.uniform(-300, 300, n_c))
+        z += [z_c + rng.normal(0, 0.1)] * one + [z_2 + rng.normal(0, 0.3)] * two + list(depth + rng.uniform(-2, 25, n_c))
+        cf += [rng.uniform(*cfs[0])] * one + [rng.uniform(*cfs[1])] * two + list(rng.uniform(0.4, 0.6, n_c))
+        level += [-70.0] * one + [-72.0] * two + list(rng.uniform(-95, -85, n_c))
     ping, y, z, cf, level = (np.asarray(v) for v in (ping, y, z, cf, level))
     return _lines(LineDetections(ping=ping, y=y, z=z, cf=cf, intensity_db=level), depth, n, timed=timed)
 
@@ -211,6 +215,28 @@ def test_a_rough_pipes_specular_image_is_no_second_line(seed):
     for lines in (_crossing_and_second(np.random.default_rng(seed), _image_moved(6.0)),
                   _crossing_and_second(np.random.default_rng(seed), _image_moved(0.0), timed=False)):
         assert sum(r["kind"] == "pipeline" for r in lines.rows) == 2
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_specular_image_stronger_than_its_crossing_is_moved_to_it(seed):
+    """The same pipe, its specular image (brute force) in pings 4-17 with CFs 0.8-0.95, too few for the burials'
+    fit to call specular, and its crossing's diffuse echo only in pings 10-19 with CFs 0.5-0.6: the image, 7-8 m
+    nearer the ship and 5-7 m deeper, is the better line (about 20 against 10-16).  One pipeline line, over the
+    image's pings, at the crossing (within the detections' 0.3 m noise across) and at the crossing's burial
+    (its 0.1 m noise: 0.5 m); without the move, two.  The same second track 6 m further out (no image there)
+    stays a second line, as deep as it lies."""
+    def lines(shift_m):
+        return _crossing_and_second(np.random.default_rng(seed), _image_moved(shift_m), present=range(4, 18),
+                                    cfs=((0.5, 0.6), (0.8, 0.95)), crossing_present=range(10, 20))
+    pipes = [r for r in lines(0.0).rows if r["kind"] == "pipeline"]
+    assert len(pipes) == 1
+    assert (pipes[0]["first_ping"], pipes[0]["last_ping"], pipes[0]["specular"]) == (4, 17, 1)
+    mean_y = 120.0 + np.mean(8.2 * np.arange(4, 18)) * math.tan(math.radians(13.5))
+    assert pipes[0]["mean_y_m"] == pytest.approx(mean_y, abs=0.3)
+    assert pipes[0]["burial_m"] == pytest.approx(0.5, abs=0.1)
+    apart = sorted((r for r in lines(6.0).rows if r["kind"] == "pipeline"), key=lambda r: r["burial_m"])
+    assert len(apart) == 2
+    assert apart[0]["burial_m"] == pytest.approx(0.5, abs=0.1) and apart[1]["burial_m"] > 4.0
 
 
 @pytest.mark.parametrize("seed", range(3))
