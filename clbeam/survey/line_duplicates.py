@@ -75,13 +75,27 @@ def _imaged_crossing(frame: TrackFrame, described: list, i: int, faces: list, im
     best of them, or ``None``: a rough pipe at a heading whose specular echo, from its nearest point off the
     plane, is stronger than its diffuse echo where it crosses the plane (the tuning draw family:17's B, 10
     degrees to the track 218 m out in 322 m of water: its image 5 m nearer the ship and 1.4 m deeper, scoring
-    26 against the crossing's 10).  A line taken as specular already has been moved."""
+    26 against the crossing's 10).  Only an image that lies apart from its line (:func:`_image_apart`): a pipe
+    along the track is its own image, and a line beside it its shadow.  A line taken as specular already has
+    been moved."""
     tr, row, *_ = described[i]
     if row["specular"]:
         return None
-    weaker = [j for j, d in enumerate(described) if d[1]["score"] < row["score"] and images[j] is not None]
+    weaker = [j for j, d in enumerate(described) if d[1]["score"] < row["score"] and images[j] is not None
+              and _image_apart(faces[j][0], images[j])]
     on = [j for j in weaker if _on_image(frame, tr.members, faces[i][0][3], images[j], over_image=True)]
     return max(on, key=lambda j: described[j][1]["score"], default=None)
+
+
+def _image_apart(face: tuple, image: tuple) -> bool:
+    """Whether a line's specular image (:func:`_image_face`) lies apart from the line as reported (``face``,
+    :func:`_faces`): where the image is seen, the median distance across more than two gates, or its median
+    burial more than :data:`IMAGE_DEPTH_M` deeper."""
+    _, y, burial, gate, _ = face
+    _, y_img, b_img, _, seen = image
+    if not seen.any():
+        return False
+    return bool(np.median(np.abs(y_img - y)[seen]) > 2 * gate or np.median(b_img[seen]) - burial > IMAGE_DEPTH_M)
 
 
 def _faces(frame: TrackFrame, line: tuple, rank, options: LineOptions) -> tuple:

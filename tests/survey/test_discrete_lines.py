@@ -240,6 +240,18 @@ def test_a_specular_image_stronger_than_its_crossing_is_moved_to_it(seed):
 
 
 @pytest.mark.parametrize("seed", range(3))
+def test_a_pipe_along_the_track_keeps_its_own_burial_beside_a_weaker_track_below_it(seed):
+    """A pipe along the track is its own specular image: a weaker track at its place, 0.8 m deeper (a pulse's
+    tail, CFs 0.5-0.6 against 0.8-0.95), does not take the line over.  One pipeline line at the pipe's
+    burial, 0.5 m, not the tail's 1.3 m."""
+    lines = _crossing_and_second(np.random.default_rng(seed), lambda y_c, z_c, a: (y_c, z_c + 0.8),
+                                 present=range(30), heading_deg=0.0, cfs=((0.8, 0.95), (0.5, 0.6)))
+    pipes = [r for r in lines.rows if r["kind"] == "pipeline"]
+    assert len(pipes) == 1
+    assert pipes[0]["burial_m"] == pytest.approx(0.5, abs=0.1)
+
+
+@pytest.mark.parametrize("seed", range(3))
 def test_a_second_pipe_along_the_image_as_long_as_the_first_stays_a_line(seed):
     """A real pipe beside the first over its whole length, 7.5 m nearer the ship and 6 m deeper (where the
     first one's image lies at mid-line, its burial 5-7 m there along the line): as good a line as the first,
