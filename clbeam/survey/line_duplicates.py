@@ -34,14 +34,19 @@ IMAGE_DEPTH_M = 1.0
 #: smooth pipe's specular echo, far stronger than a diffuse one, is seen through the transmit pattern's second
 #: sidelobe (17.8 dB down, 2.46 widths off), out to its third null (family:24's B: 2.1-2.3 widths)
 IMAGE_SEEN_BEAMS = 3.0
+#: a line's path beyond its ends, and its two pieces' paths at a junction (:mod:`clbeam.survey.line_joins`), are
+#: straight lines through this many of its pings nearest the end
+END_PINGS = 6
 
 
 def without_duplicates(described: list, frame: TrackFrame, options: LineOptions, ranked: tuple,
                        geometry: tuple, to_crossing: Callable[[tuple, tuple], tuple | None]) -> list:
-    """The lines less those that shadow a better one (:func:`_shadows`) or lie on its specular image
-    (:func:`_on_image`), in line order.  A line that lies on a weaker line's image is that pipe's specular echo,
-    the weaker one its crossing (:func:`_imaged_crossing`): it is first moved there, ``to_crossing(line,
-    crossing) -> line`` (or ``None``: left as it is), and the crossing then shadows it.  ``ranked``: the
+    """The lines less those that shadow a better one (:func:`_shadows`), in line order.  A line that lies on
+    another line's specular image is that pipe's specular echo, the other one its crossing
+    (:func:`_imaged_crossing`): it is first moved there, ``to_crossing(line, crossing) -> line`` (or ``None``:
+    left as it is), and then shadows the crossing if the crossing is the better line, or the crossing shadows
+    it; what reaches beyond the crossing's pings stays, to be joined to it (:mod:`clbeam.survey.line_joins`).
+    ``ranked``: the
     ``line_ranker`` the lines were found with and the detections' intensities (dB, or ``None``); ``geometry``:
     the pings' seabeds and grid centres and whether the along-track distance is known (without it no heading,
     no image).  Better: the higher score, and of equal
@@ -57,42 +62,39 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
     described = list(described)
     kept = []
     for i in order:
-        crossing = _imaged_crossing(frame, described, i, faces, images)
+        crossing = _imaged_crossing(frame, described, i, faces, images, kept)
         moved = None if crossing is None else to_crossing(described[i], described[crossing])
         if moved is not None:
             described[i] = moved
             faces[i], images[i] = _faces(frame, moved, rank, options), None
-        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i])
-                   or (described[i][1]["score"] < described[j][1]["score"]
-                       and _on_image(frame, described[i][0].members, faces[i][0][3], images[j]))
-                   for j in kept):
+        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i]) for j in kept):
             kept.append(i)
     return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
 
 
-def _imaged_crossing(frame: TrackFrame, described: list, i: int, faces: list, images: list) -> int | None:
-    """The weaker line whose specular image (:func:`_image_face`) line ``i`` lies on (:func:`_on_image`), the
-    best of them, or ``None``: a rough pipe at a heading whose specular echo, from its nearest point off the
-    plane, is stronger than its diffuse echo where it crosses the plane (the tuning draw family:17's B, 10
-    degrees to the track 218 m out in 322 m of water: its image 5 m nearer the ship and 1.4 m deeper, scoring
-    26 against the crossing's 10).  Only an image that lies apart from its line (:func:`_image_apart`): a pipe
-    along the track is its own image, and a line beside it its shadow.  A line taken as specular already has
-    been moved."""
+def _imaged_crossing(frame: TrackFrame, described: list, i: int, faces: list, images: list,
+                     kept: list) -> int | None:
+    """The line whose specular image (:func:`_image_face`) line ``i`` lies on (:func:`_on_image`, over the
+    other's pings), among the better lines kept and the weaker ones, the best of them, or ``None``.  A rough
+    pipe at a heading echoes both where it crosses the plane and from its nearest point off it, and either can
+    be the stronger (the tuning draw family:17's B, 10 degrees to the track 218 m out in 322 m of water: its
+    image 5 m nearer the ship and 1.4 m deeper, scoring 26 against the crossing's 10).  Only an image that
+    lies apart from its line (:func:`_image_apart`): a pipe along the track is its own image, and a line beside
+    it its shadow.  A line taken as specular already has been moved."""
     tr, row, *_ = described[i]
     if row["specular"]:
         return None
-    weaker = [j for j, d in enumerate(described) if d[1]["score"] < row["score"] and images[j] is not None
-              and _image_apart(faces[j][0], images[j])]
-    on = [j for j in weaker if _on_image(frame, tr.members, faces[i][0][3], images[j], over_image=True)]
+    others = [j for j, d in enumerate(described) if (j in kept or d[1]["score"] < row["score"])
+              and images[j] is not None and _image_apart(images[j], faces[j][0][2])]
+    on = [j for j in others if _on_image(frame, tr.members, faces[i][0][3], images[j], over_image=True)]
     return max(on, key=lambda j: described[j][1]["score"], default=None)
 
 
-def _image_apart(face: tuple, image: tuple) -> bool:
-    """Whether a line's specular image (:func:`_image_face`) lies apart from the line as reported (``face``,
-    :func:`_faces`): where the image is seen, the median distance across more than two gates, or its median
-    burial more than :data:`IMAGE_DEPTH_M` deeper."""
-    _, y, burial, gate, _ = face
-    _, y_img, b_img, _, seen = image
+def _image_apart(image: tuple, burial: float) -> bool:
+    """Whether a line's specular image (:func:`_image_face`) lies apart from the line (at ``burial``, m): where
+    the image is seen, the median distance across more than two gates, or its median burial more than
+    :data:`IMAGE_DEPTH_M` deeper."""
+    _, y_img, b_img, gate, seen, y = image
     if not seen.any():
         return False
     return bool(np.median(np.abs(y_img - y)[seen]) > 2 * gate or np.median(b_img[seen]) - burial > IMAGE_DEPTH_M)
@@ -118,21 +120,46 @@ def _image_face(frame: TrackFrame, line: tuple, reported: tuple, geometry: tuple
                 ) -> tuple | None:
     """Where a ``pipeline`` line that is not taken as specular would show its specular image, were its pipe
     smooth (:func:`clbeam.survey.specular.specular_image`, from its path's heading and depth): ``(pings, y,
-    burial, gate, seen)`` per ping of its extent, ``seen`` where the nearest point lies within
-    :data:`IMAGE_SEEN_BEAMS` beam widths of the ping's plane (further out the echo is not seen).  ``None`` for
-    other lines (a specular line's echoes' face is its image), without a seabed or an along-track distance."""
+    burial, gate, seen, path_y)`` per ping of its extent and ``max_gap_pings + 1`` imaged pings either side
+    (:func:`extended_path`: a pipe's image can take up where its crossing's line stops), ``seen`` where the
+    nearest point lies within :data:`IMAGE_SEEN_BEAMS` beam widths of the ping's plane (further out the echo is
+    not seen), ``path_y`` the line's own path there.  ``None`` for other lines (a specular line's echoes' face
+    is its image), without a seabed or an along-track distance."""
     tr, row, *_ = line
-    pings, y, burial, gate, _ = reported
+    _, y, burial, gate, _ = reported
     sb, centre_yz, scaled = geometry
     s_ext = frame.ping_s[tr.first:tr.last + 1]
     if (not scaled or row["kind"] != "pipeline" or row["specular"] or not math.isfinite(burial)
-            or pings.size < 2 or np.ptp(s_ext) <= 0):
+            or y.size < 2 or np.ptp(s_ext) <= 0):
         return None
+    pings, s, y = extended_path(frame, tr, y, options.max_gap_pings + 1)
     z = sb[pings, 0] + sb[pings, 1] * y + burial
-    slope = np.gradient(y, s_ext)
-    y_img, z_img, off = specular_image(y, z, slope, centre_yz[pings])
+    y_img, z_img, off = specular_image(y, z, np.gradient(y, s), centre_yz[pings])
     seen = off <= math.sin(IMAGE_SEEN_BEAMS * math.radians(options.beam_width_deg))
-    return pings, y_img, z_img - (sb[pings, 0] + sb[pings, 1] * y_img), gate, seen
+    return pings, y_img, z_img - (sb[pings, 0] + sb[pings, 1] * y_img), gate, seen, y
+
+
+def extended_path(frame: TrackFrame, tr: Track, path_y: np.ndarray, reach: int) -> tuple:
+    """A line's path over its extent and ``reach`` imaged pings either side: ``(pings, s, y)``, survey pings,
+    along-track distances (m) and offsets across (m), beyond its ends the straight line through its
+    :data:`END_PINGS` pings nearest each (:func:`end_value`)."""
+    lo, hi = max(tr.first - reach, 0), min(tr.last + reach, frame.pings.size - 1)
+    s = frame.ping_s[lo:hi + 1]
+    s_ext = frame.ping_s[tr.first:tr.last + 1]
+    y = np.interp(s, s_ext, path_y)
+    before, after = s < s_ext[0], s > s_ext[-1]
+    y[before] = end_value(s_ext[:END_PINGS], path_y[:END_PINGS], s[before])
+    y[after] = end_value(s_ext[-END_PINGS:], path_y[-END_PINGS:], s[after])
+    return frame.pings[lo:hi + 1], s, y
+
+
+def end_value(s: np.ndarray, y: np.ndarray, at):
+    """A path's offset across (m) at along-track distances ``at`` (m), from a straight line through ``(s, y)``
+    (one point, or all at one distance: its last offset)."""
+    if s.size < 2 or np.ptp(s) <= 0:
+        return np.full(np.shape(at), float(y[-1]))
+    slope, intercept = np.polyfit(s, y, 1)
+    return slope * np.asarray(at, dtype=np.float64) + intercept
 
 
 def _on_image(frame: TrackFrame, members: np.ndarray, gate: float, image: tuple | None,
@@ -145,7 +172,7 @@ def _on_image(frame: TrackFrame, members: np.ndarray, gate: float, image: tuple 
     (a line that reaches beyond a weaker crossing)."""
     if image is None:
         return False
-    pings, y_img, b_img, gate_img, seen = image
+    pings, y_img, b_img, gate_img, seen, _ = image
     k = np.clip(np.searchsorted(pings, frame.ping[members]), 0, pings.size - 1)
     inside = pings[k] == frame.ping[members]
     on = inside & seen[k]

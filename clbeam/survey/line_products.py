@@ -21,7 +21,8 @@ from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS  # noqa: F401 (LI
 from clbeam.survey.burial import ARC_SIGMA_RAD, BURIAL_MODEL_SE_M, SEABED_SE_M, SPECULAR_K_SIGMA, arc_constrained, specular_fit
 from clbeam.survey.edges import edges_from_nearest_point
 from clbeam.survey.georef import SurveyNavigation, peak_positions, to_utm
-from clbeam.survey.line_duplicates import effective_gates, without_duplicates
+from clbeam.survey.line_duplicates import effective_gates, extended_path, without_duplicates
+from clbeam.survey.line_joins import joined_end_to_end
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_score import CF_LEVELS, SearchSize, clutter_hit_rate, copy_offsets, line_score
 from clbeam.survey.lines import Track, TrackFrame, across_gate, burial_ok, find_tracks, line_burial, line_path
@@ -202,7 +203,9 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
                  for tr in tracks]
     kept = without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
                               (rank, level), (sb, centre_yz, scaled),
-                              lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled)))
+                              lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled), options))
+    kept = joined_end_to_end(kept, frame, options,
+                             lambda first, second: _joined(frame, first, second, (sb, centre_yz, nav, scaled), options))
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
         row["line"] = len(rows)
@@ -360,17 +363,23 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
 
-def _moved_to_crossing(frame: TrackFrame, line: tuple, crossing: tuple, where: tuple) -> tuple | None:
+def _moved_to_crossing(frame: TrackFrame, line: tuple, crossing: tuple, where: tuple,
+                       options: LineOptions) -> tuple | None:
     """A line that is a pipe's specular image moved to the pipe's ``crossing`` line (both as :func:`_describe`
     gives them, with their tracks): its path shifted across by the median offset of the crossing's path from
-    its own over the pings both span, the crossing's burial (the echoes of the pipe itself, not of its nearest
+    its own over the pings both span (where they share fewer than three, the crossing's path extended out to
+    ``max_gap_pings + 1`` pings beyond its ends, :func:`~clbeam.survey.line_duplicates.extended_path`), the
+    crossing's burial (the echoes of the pipe itself, not of its nearest
     point off the plane, deeper by an amount that depends on the transmit pattern over it) and kind, taken as
     specular; ``None`` where they share fewer than three pings.  ``where``: the pings' seabeds, the
     navigation, and whether the along-track distance is known."""
     sb, nav, scaled = where
     tr, row, (ext, path_y), *_ = line
-    _, row_c, (ext_c, path_c), *_ = crossing
+    tr_c, row_c, (ext_c, path_c), *_ = crossing
     _, a, b = np.intersect1d(ext, ext_c, return_indices=True)
+    if a.size < 3:  # the image takes up where the crossing's line stops
+        ext_c, _, path_c = extended_path(frame, tr_c, path_c, options.max_gap_pings + 1)
+        _, a, b = np.intersect1d(ext, ext_c, return_indices=True)
     if a.size < 3:
         return None
     path_y = path_y + float(np.median(path_c[b] - path_y[a]))
@@ -378,6 +387,37 @@ def _moved_to_crossing(frame: TrackFrame, line: tuple, crossing: tuple, where: t
            "specular": 1, "mean_y_m": float(np.mean(path_y))}
     if math.isfinite(row["burial_m"]):
         row["mean_z_m"] = float(np.nanmean(sb[ext, 0] + sb[ext, 1] * path_y + row["burial_m"]))
+    return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+
+
+def _joined(frame: TrackFrame, first: tuple, second: tuple, where: tuple, options: LineOptions) -> tuple:
+    """Two lines end to end (:func:`clbeam.survey.line_joins.end_to_end`) as one: the first's detections up to
+    the second's first one, then the second's; each one's path over its own pings (the second's where they
+    overlap), interpolated across a gap; their burials' weighted mean, their own errors combined and the
+    common seabed and model errors added once; the higher score.  ``where``: the pings' seabeds and grid
+    centres, the navigation, and whether the along-track distance is known."""
+    sb, centre_yz, nav, scaled = where
+    (tr1, row1, (ext1, y1), *_), (tr2, row2, (ext2, y2), *_) = first, second
+    members = np.concatenate([tr1.members[frame.ping[tr1.members] < frame.ping[tr2.members[0]]], tr2.members])
+    tr = Track(members, tr1.first, tr2.last)
+    ext = frame.pings[tr.first:tr.last + 1]
+    before = ext1 < ext2[0]
+    path_y = np.interp(ext, np.r_[ext1[before], ext2], np.r_[y1[before], y2])
+    floor = math.hypot(SEABED_SE_M, BURIAL_MODEL_SE_M)
+    own = np.sqrt(np.maximum(np.array([row1["burial_se_m"], row2["burial_se_m"]]) ** 2 - floor ** 2, 1e-6))
+    w = own ** -2.0
+    burial = float(np.dot(w, [row1["burial_m"], row2["burial_m"]]) / w.sum())
+    se = math.hypot(w.sum() ** -0.5, floor)
+    z_line = sb[ext, 0] + sb[ext, 1] * path_y + burial
+    nadir_angle = float(np.nanmedian(np.abs(np.degrees(np.arctan2(path_y - centre_yz[ext, 0],
+                                                                  z_line - centre_yz[ext, 1])))))
+    row = {**row1, "kind": line_kind(burial, se, nadir_angle, options), "n_pings": int(members.size),
+           "first_ping": int(ext[0]), "last_ping": int(ext[-1]), "mean_cf": float(np.mean(frame.cf[members])),
+           "score": max(row1["score"], row2["score"]), "burial_m": burial,
+           "burial_std_m": max(row1["burial_std_m"], row2["burial_std_m"]), "burial_se_m": se,
+           "burial_resolved": int(se <= options.burial_resolution_m), "mean_y_m": float(np.mean(path_y)),
+           "mean_z_m": float(np.nanmean(z_line)), "detected_fraction": float(members.size / ext.size),
+           "specular": int(row1["specular"] or row2["specular"])}
     return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
 
