@@ -27,7 +27,7 @@ SHADOW_BEAMS = 2.0
 #: column lies 13.3 dB down, the main lobe's edge less: at 10 two tracks 6.4-6.6 dB down, 1.3-3.4 m deeper and
 #: 8-11 m beside crossing pipes of the discrete tuning draws family:1 and family:6 were false pipeline lines)
 SHADOW_DB = 6.0
-#: a line whose detections lie within this much of a better line's specular image in burial (m), and within two
+#: a line whose detections lie within this much of another line's specular image in burial (m), and within two
 #: gates across, is that image (:func:`_on_image`; the tuning draw family:24's B: 0.2 m on average)
 IMAGE_DEPTH_M = 1.0
 #: ... where the image's nearest point lies within this many beam widths (``lambda / L``) of the ping's plane: a
@@ -46,14 +46,13 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
     (:func:`_imaged_crossing`): it is first moved there, ``to_crossing(line, crossing) -> line`` (or ``None``:
     left as it is), and then shadows the crossing if the crossing is the better line, or the crossing shadows
     it; what reaches beyond the crossing's pings stays, to be joined to it (:mod:`clbeam.survey.line_joins`).
-    ``ranked``: the
-    ``line_ranker`` the lines were found with and the detections' intensities (dB, or ``None``); ``geometry``:
-    the pings' seabeds and grid centres and whether the along-track distance is known (without it no heading,
-    no image).  Better: the higher score, and of equal
-    scores (long lines with a detection in every ping reach the same) the higher mean level: the echo, not its
-    range sidelobes (the seabed's nadir echo has peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near
-    1).  Each line is compared as reported and as its echoes lie (:func:`_faces`): a specular line's detections
-    are not where its moved path is."""
+    ``ranked``: the ``line_ranker`` the lines were found with and the detections' intensities (dB, or
+    ``None``); ``geometry``: the pings' seabeds and grid centres and whether the along-track distance is known
+    (without it no heading, no image).  Better: the higher score, and of equal scores (long lines with a
+    detection in every ping reach the same) the higher mean level: the echo, not its range sidelobes (the
+    seabed's nadir echo has peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near 1).  Each line is
+    compared as reported and as its echoes lie (:func:`_faces`): a specular line's detections are not where its
+    moved path is."""
     rank, level = ranked
     loud = [_mean_level(level, d[0].members) for d in described]
     order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))

@@ -239,36 +239,32 @@ def test_a_specular_image_stronger_than_its_crossing_is_moved_to_it(seed):
     assert apart[0]["burial_m"] == pytest.approx(0.5, abs=0.1) and apart[1]["burial_m"] > 4.0
 
 
+#: (image's pings, CF ranges of the crossing and the image, crossing's pings, tolerance of the mean offset, m)
+JOINED_CASES = {
+    # the crossing better over pings 8-29, the image over 0-13 only: moved by the six pings both span (within
+    # the detections' 0.3 m noise across)
+    "overlapping": (range(0, 14), ((0.5, 0.6), (0.8, 0.95)), range(8, 30), 0.3),
+    # the crossing over pings 0-14, the image as strong over 17-29, no ping with both: the crossing's path
+    # carried straight on over max_gap_pings + 1 meets the image's first pings (extrapolated over up to 13 pings)
+    "apart": (range(17, 30), ((0.6, 0.8), (0.6, 0.8)), range(0, 15), 0.6),
+}
+
+
+@pytest.mark.parametrize("case", sorted(JOINED_CASES))
 @pytest.mark.parametrize("seed", range(4))
-def test_an_image_beyond_its_crossings_pings_is_moved_and_joined_to_it(seed):
-    """The same pipe, its crossing's echo in pings 8-29 (CFs 0.5-0.6, the better line) and its specular image
-    (brute force, CFs 0.8-0.95) in pings 0-13 only: the image, moved to the crossing by the six pings both
-    span, takes up where the crossing's line starts.  One pipeline line over all 30 pings, at the crossing
-    (within the detections' 0.3 m noise across) and its burial; without the join, two."""
-    lines = _crossing_and_second(np.random.default_rng(seed), _image_moved(0.0), present=range(0, 14),
-                                 cfs=((0.5, 0.6), (0.8, 0.95)), crossing_present=range(8, 30))
+def test_an_image_beyond_its_crossings_pings_is_moved_and_joined_to_it(seed, case):
+    """The same pipe, its crossing's echo over some pings and its specular image (brute force) over others
+    (:data:`JOINED_CASES`): the image is moved to the crossing and takes up where the crossing's line starts or
+    stops.  One pipeline line over all 30 pings, at the crossing and its burial; without the join (or, apart,
+    without the carried-on path), two."""
+    present, cfs, crossing_present, tolerance = JOINED_CASES[case]
+    lines = _crossing_and_second(np.random.default_rng(seed), _image_moved(0.0), present=present, cfs=cfs,
+                                 crossing_present=crossing_present)
     pipes = [r for r in lines.rows if r["kind"] == "pipeline"]
     assert len(pipes) == 1
     assert (pipes[0]["first_ping"], pipes[0]["last_ping"]) == (0, 29)
     mean_y = 120.0 + np.mean(8.2 * np.arange(30)) * math.tan(math.radians(13.5))
-    assert pipes[0]["mean_y_m"] == pytest.approx(mean_y, abs=0.3)
-    assert pipes[0]["burial_m"] == pytest.approx(0.5, abs=0.1)
-
-
-@pytest.mark.parametrize("seed", range(4))
-def test_an_image_that_takes_up_where_the_crossing_stops_is_joined_to_it(seed):
-    """The same pipe, its crossing's echo in pings 0-14 and its specular image (brute force, as strong) in
-    pings 17-29 only, no ping with both: the crossing's path carried straight on over the search's gap
-    (``max_gap_pings + 1``) meets the image's first pings; the image is moved there and joined.  One pipeline
-    line over all 30 pings at the crossing's burial, its mean offset within 0.6 m of the crossings' (the
-    path extrapolated over up to 13 pings); without the extension, two lines."""
-    lines = _crossing_and_second(np.random.default_rng(seed), _image_moved(0.0), present=range(17, 30),
-                                 crossing_present=range(0, 15))
-    pipes = [r for r in lines.rows if r["kind"] == "pipeline"]
-    assert len(pipes) == 1
-    assert (pipes[0]["first_ping"], pipes[0]["last_ping"]) == (0, 29)
-    mean_y = 120.0 + np.mean(8.2 * np.arange(30)) * math.tan(math.radians(13.5))
-    assert pipes[0]["mean_y_m"] == pytest.approx(mean_y, abs=0.6)
+    assert pipes[0]["mean_y_m"] == pytest.approx(mean_y, abs=tolerance)
     assert pipes[0]["burial_m"] == pytest.approx(0.5, abs=0.1)
 
 
