@@ -206,6 +206,14 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
                               lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled), options))
     kept = joined_end_to_end(kept, frame, options,
                              lambda first, second: _joined(frame, first, second, (sb, centre_yz, nav, scaled), options))
+    rows, paths, geo, ping_paths, labels = _numbered(kept, order, n)
+    return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths,
+                       score_path=lambda p, y, burial=None: path_score(frame, p, y, options, rank.size, burial))
+
+
+def _numbered(kept: list, order: np.ndarray, n: int) -> tuple:
+    """The kept lines numbered in order: their rows, paths, geographic paths, ping paths, and each of the ``n``
+    detections' line (-1: none); ``order``: the frame's detection order."""
     rows, paths, geo, ping_paths, labels = [], [], [], [], np.full(n, -1, dtype=np.int64)
     for tr, row, ping_path, path, lonlat in kept:
         row["line"] = len(rows)
@@ -214,8 +222,7 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
         paths.append(path)
         geo.append(lonlat)
         ping_paths.append(ping_path)
-    return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths,
-                       score_path=lambda p, y, burial=None: path_score(frame, p, y, options, rank.size, burial))
+    return rows, paths, geo, ping_paths, labels
 
 
 def path_score(frame: TrackFrame, pings: np.ndarray, path_y: np.ndarray, options: LineOptions, size: SearchSize,
