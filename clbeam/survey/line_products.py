@@ -308,8 +308,22 @@ def _frame(det: LineDetections, order: np.ndarray, sb: np.ndarray, centre_yz: np
     r = np.hypot(y - centre_yz[p, 0], z - centre_yz[p, 1])
     s = s_ping[np.searchsorted(pings, p)]
     smear = None if det.smear_m is None else np.asarray(det.smear_m, dtype=np.float64)[order]
+    echo = None if det.intensity_db is None else echo_strength(np.asarray(det.intensity_db, dtype=np.float64)[order], r)
     return TrackFrame(ping=p, s=s, y=ya, b=b, cf=det.cf[order], b_sigma=sd, b_post=bpost,
-                      pings=pings, ping_s=s_ping, y_sigma=sy, r=r, smear=smear)
+                      pings=pings, ping_s=s_ping, y_sigma=sy, r=r, smear=smear, echo=echo)
+
+
+def echo_strength(intensity_db: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Each detection's echo strength relative to the median of them (linear, dimensionless): its intensity
+    (dB) with the two-way spherical spreading over its slant range ``r`` (m) taken out; 1 where either is
+    unknown."""
+    good = np.isfinite(intensity_db) & np.isfinite(r) & (r > 0)
+    out = np.ones(intensity_db.size)
+    if not good.any():
+        return out
+    level = intensity_db[good] + 40.0 * np.log10(r[good])
+    out[good] = 10.0 ** ((level - np.median(level)) / 10.0)
+    return out
 
 
 def _search_size(frame: TrackFrame) -> SearchSize:

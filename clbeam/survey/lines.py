@@ -119,6 +119,11 @@ class TrackFrame:
         ``(n,)`` how much deeper each detection would lie than a line's crossing
         were it an echo of the line's stretch inside the transmit beam (m,
         :func:`clbeam.survey.burial.smear_deepening_m`; zeros: none).
+    echo : numpy.ndarray or None
+        ``(n,)`` echo strength of each detection: its linear intensity with the
+        two-way spherical spreading (``r**4``) taken out, relative to the
+        frame's median (ones: none known).  Weighs a wide smear's detections:
+        the transmit beam's main lobe makes its centre the brightest.
     pings : numpy.ndarray
         ``(k,)`` every imaged survey ping, sorted (those without detections too).
     ping_s : numpy.ndarray
@@ -137,12 +142,15 @@ class TrackFrame:
     y_sigma: np.ndarray | None = None
     r: np.ndarray | None = None
     smear: np.ndarray | None = None
+    echo: np.ndarray | None = None
     starts: np.ndarray = field(init=False)
 
     def __post_init__(self):
         for name in ("y_sigma", "r", "smear"):
             if getattr(self, name) is None:
                 setattr(self, name, np.zeros(self.y.size))
+        if self.echo is None:
+            self.echo = np.ones(self.y.size)
         pos = np.searchsorted(self.ping, self.pings)
         self.starts = np.r_[pos, self.ping.size]
 
@@ -681,7 +689,7 @@ def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarr
     """The line's offset at each ping of its extent (m): :func:`smooth_path` of its members, then
     :data:`PATH_PASSES` times a local straight-line fit of every detection inside its gates about that path,
     weighted by CF (a wide smear, :data:`WIDE_SMEAR_M`: :data:`WIDE_SMEAR_PASSES` fits over
-    :data:`WIDE_SMEAR_LENGTH` times ``fit_length_m``).  Across, the gate
+    :data:`WIDE_SMEAR_LENGTH` times ``fit_length_m``, weighted by CF times the echo strength).  Across, the gate
     is :func:`across_gate` at the path's slope, narrowed to 2.5 times the members' RMS distance from the path
     (at least ``across_gate_m``) unless they spread over ``SMEARED_SPREAD`` of the smear: a tight line at a
     heading takes in no clutter or neighbour the smear's width away; in burial, :func:`burial_ok` about the
@@ -713,7 +721,9 @@ def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarr
         inside = idx[near_burial & (np.abs(frame.y[idx] - path[k]) <= gate)]
         if inside.size < 3:
             break
-        path = local_linear(frame.s[inside], frame.y[inside], s_ext, fit_half, weights=frame.cf[inside])
+        # a wide smear's centre is where the beam's main lobe lies: its detections weigh by their echo too
+        weights = frame.cf[inside] * (frame.echo[inside] if wide else 1.0)
+        path = local_linear(frame.s[inside], frame.y[inside], s_ext, fit_half, weights=weights)
     return path
 
 

@@ -22,7 +22,7 @@ from clbeam.evaluation.line_truth import LineTruth, score_lines
 from clbeam.io.pingwrite import write_ping_file
 from clbeam.io.survey_products import LINE_COLUMNS, LINE_KINDS
 from clbeam.survey import open_survey, product_paths
-from clbeam.survey.line_products import SurveyLines
+from clbeam.survey.line_products import SurveyLines, echo_strength
 
 
 def read_csv(path):
@@ -220,3 +220,16 @@ def test_seen_above_chance_is_the_binomial_tail_against_the_copies_rate():
     r = score_lines(SurveyLines([], [], np.zeros(0), 0, None, 1.0, []), LineTruth(["F"], few, np.ones((n, 1)), few),
                     ping, det_y, 1.0)[0][0]
     assert (0.5 / 3) ** 3 > SEEN_P_VALUE and r["detectable_pings"] == 3 and not r["seen"]
+
+
+def test_echo_strength_takes_the_two_way_spreading_out_of_the_intensity():
+    """Equal intensities at 100 and 200 m: the farther echo is 2**4 = 16 times the stronger once the two-way
+    spherical spreading (r**4 in intensity) is out; 10 dB more is 10 times; relative to the median; an unknown
+    intensity or range weighs 1."""
+    level = np.array([-30.0, -30.0, -20.0, np.nan, -30.0])
+    r = np.array([100.0, 200.0, 100.0, 150.0, np.nan])
+    echo = echo_strength(level, r)
+    assert echo[1] / echo[0] == pytest.approx(16.0, rel=1e-12)
+    assert echo[2] / echo[0] == pytest.approx(10.0, rel=1e-12)
+    assert np.median(echo[:3]) == pytest.approx(1.0, rel=1e-12)
+    assert echo[3] == echo[4] == 1.0

@@ -9,6 +9,7 @@ recover the lines' own detections; the scores must follow the binomial tail
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -623,6 +624,32 @@ def test_a_wide_smear_with_few_detections_a_ping_is_centred_over_a_longer_fit(mo
     wide, plain = np.array(errors["wide"]), np.array(errors["plain"])
     assert (wide < 0.45).all(), wide
     assert wide.mean() < 0.85 * plain.mean(), (wide.mean(), plain.mean())
+
+
+def test_a_wide_smears_path_weighs_its_detections_by_their_echo_strength():
+    """The same wide smears (2-3 detections a ping, pipes at 25 and 40 degrees), each detection given an echo
+    strength: on the pipe speckle (exponential) under the main lobe's ``sinc^2`` of its offset over the smear's
+    half-width (taken to the first null), in the clutter speckle of half the lobe's peak.  Weighted by it the
+    path comes nearer the crossings: on average within 0.8 of the unweighted error on the same frames (0.52
+    measured), the ratio of the two centroids' standard deviations a detection (``sqrt(2 <s^2 u^2>) / <s>``
+    against ``sqrt(<u^2>)`` for ``s = sinc^2(u)``, 0.80: the speckle's second moment costs ``sqrt(2)``, the
+    lobe gains more), and within 0.3 of the half-width on every frame (0.12 at most)."""
+    weighted, plain = [], []
+    for seed in range(20, 26):
+        for heading in (25.0, 40.0):
+            frame, truth, half = smeared_crossing_frame(seed, per_ping=(2, 4), heading_deg=heading)
+            t = [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30][0]
+            ext = slice(t.first, t.last + 1)
+            plain.append(np.sqrt(np.mean((line_path(frame, t, LineOptions()) - truth[ext]) ** 2)) / half[ext].mean())
+            rng = np.random.default_rng(seed + 1000)
+            u = (frame.y - truth[frame.ping]) / half[frame.ping]
+            echo = np.where(np.abs(u) <= 1, rng.exponential(1.0, u.size) * np.sinc(u) ** 2,
+                            rng.exponential(0.5, u.size))
+            lit = dataclasses.replace(frame, echo=echo)
+            weighted.append(np.sqrt(np.mean((line_path(lit, t, LineOptions()) - truth[ext]) ** 2)) / half[ext].mean())
+    weighted, plain = np.array(weighted), np.array(plain)
+    assert (weighted < 0.3).all(), weighted
+    assert weighted.mean() < 0.8 * plain.mean(), (weighted.mean(), plain.mean())
 
 
 def test_a_tight_line_at_a_heading_keeps_the_plain_fit(monkeypatch):
