@@ -371,10 +371,8 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     measured = (measured[0], math.hypot(measured[1], floor))
     burial_se = math.hypot(burial_se, floor)
     resolved = math.isfinite(burial_se) and burial_se <= options.burial_resolution_m
-    z_line = sb[ext, 0] + sb[ext, 1] * path_y + (burial if math.isfinite(burial) else 0.0)
-    angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))
-    seabed_known = bool(np.isfinite(angle).any())  # pings without a seabed have no depth for the line
-    nadir_angle = float(np.nanmedian(np.abs(angle))) if seabed_known else math.nan
+    z_line, nadir_angle = _line_depth(sb, centre_yz, ext, path_y, burial)
+    seabed_known = math.isfinite(nadir_angle)
     row = {"kind": line_kind(*(measured if spec is None else (burial, burial_se)), nadir_angle, options),
            "n_pings": int(m.size), "first_ping": int(ext[0]), "last_ping": int(ext[-1]),
            "mean_cf": float(np.mean(frame.cf[m])), "score": float(score),
@@ -382,6 +380,15 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
            "mean_y_m": float(np.mean(path_y)), "mean_z_m": float(np.nanmean(z_line)) if seabed_known else math.nan,
            "detected_fraction": float(m.size / ext.size), "specular": int(spec is not None)}
     return (row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+
+
+def _line_depth(sb: np.ndarray, centre_yz: np.ndarray, ext: np.ndarray, path_y: np.ndarray, burial: float) -> tuple:
+    """A line's depth at each ping of its extent ``ext`` (m, below the transducers; NaN where the ping has no
+    seabed) along ``path_y`` at ``burial`` (m; an unknown one taken as 0), and its median angle from nadir
+    (degree; NaN where no ping has a seabed)."""
+    z_line = sb[ext, 0] + sb[ext, 1] * path_y + (burial if math.isfinite(burial) else 0.0)
+    angle = np.degrees(np.arctan2(path_y - centre_yz[ext, 0], z_line - centre_yz[ext, 1]))
+    return z_line, float(np.nanmedian(np.abs(angle))) if np.isfinite(angle).any() else math.nan
 
 
 def _moved_to_crossing(frame: TrackFrame, line: tuple, crossing: tuple, where: tuple,
@@ -429,15 +436,14 @@ def _joined(frame: TrackFrame, first: tuple, second: tuple, where: tuple, option
     w = own ** -2.0
     burial = float(np.dot(w, [row1["burial_m"], row2["burial_m"]]) / w.sum())
     se = math.hypot(w.sum() ** -0.5, floor)
-    z_line = sb[ext, 0] + sb[ext, 1] * path_y + burial
-    nadir_angle = float(np.nanmedian(np.abs(np.degrees(np.arctan2(path_y - centre_yz[ext, 0],
-                                                                  z_line - centre_yz[ext, 1])))))
+    z_line, nadir_angle = _line_depth(sb, centre_yz, ext, path_y, burial)
     row = {**row1, "kind": line_kind(burial, se, nadir_angle, options), "n_pings": int(members.size),
            "first_ping": int(ext[0]), "last_ping": int(ext[-1]), "mean_cf": float(np.mean(frame.cf[members])),
            "score": max(row1["score"], row2["score"]), "burial_m": burial,
            "burial_std_m": max(row1["burial_std_m"], row2["burial_std_m"]), "burial_se_m": se,
            "burial_resolved": int(se <= options.burial_resolution_m), "mean_y_m": float(np.mean(path_y)),
-           "mean_z_m": float(np.nanmean(z_line)), "detected_fraction": float(members.size / ext.size),
+           "mean_z_m": float(np.nanmean(z_line)) if math.isfinite(nadir_angle) else math.nan,
+           "detected_fraction": float(members.size / ext.size),
            "specular": int(row1["specular"] or row2["specular"])}
     return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
