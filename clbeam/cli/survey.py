@@ -66,6 +66,9 @@ def add_line_options(p) -> None:
                    help=f"largest cross-track distance of a detection from its line (m, default {d.across_gate_m:g})")
     a.add_argument("--line-max-gap", type=int, default=d.max_gap_pings, metavar="N",
                    help=f"imaged pings in a row without a detection a line may bridge (default {d.max_gap_pings})")
+    a.add_argument("--line-join-gap", type=float, default=d.join_gap_m, metavar="M",
+                   help=f"longest stretch along the track between two pipeline lines end to end that are joined "
+                        f"when they line up and agree in burial (m, default {d.join_gap_m:g})")
     a.add_argument("--line-max-angle", type=float, default=d.max_angle_deg, metavar="DEG",
                    help=f"largest heading of a line relative to the track (degree, default {d.max_angle_deg:g})")
     a.add_argument("--truth", action="store_true",
@@ -76,7 +79,8 @@ def add_line_options(p) -> None:
 def line_options_from_args(args):
     """:class:`LineOptions` from parsed arguments."""
     return LineOptions(min_score=args.line_min_score, across_gate_m=args.line_gate,
-                       max_gap_pings=args.line_max_gap, max_angle_deg=args.line_max_angle)
+                       max_gap_pings=args.line_max_gap, join_gap_m=args.line_join_gap,
+                       max_angle_deg=args.line_max_angle)
 
 
 def options_from_survey_args(args, scan):

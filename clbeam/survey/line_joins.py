@@ -37,20 +37,23 @@ def joined_end_to_end(lines: list, frame: TrackFrame, options: LineOptions,
 
 def end_to_end(first: tuple, second: tuple, frame: TrackFrame, options: LineOptions) -> bool:
     """Whether ``second`` takes up where ``first`` stops: both ``pipeline`` lines; ``second`` starts after
-    ``first`` does, ends after it, and starts no more than ``max_gap_pings + 1`` imaged pings after its end,
-    overlapping it by no more than ``max_gap_pings``; at the junction (halfway between the end of one and
-    the start of the other) their paths, each a straight line through its :data:`~clbeam.survey.line_duplicates.END_PINGS` pings
-    nearest it, lie within two gates across (the wider line's, :func:`effective_gates`), and their burials
-    within twice their combined standard error."""
+    ``first`` does, ends after it, and starts no more than ``max_gap_pings + 1`` imaged pings, or ``join_gap_m``
+    along the track, after its end (a pipe's echoes can stop for longer than the search bridges: the survey
+    families' gaps of 30-80 m), overlapping it by no more than ``max_gap_pings``; at the junction (halfway
+    between the end of one and the start of the other) their paths, each a straight line through its
+    :data:`~clbeam.survey.line_duplicates.END_PINGS` pings nearest it, lie within two gates across (the wider
+    line's, :func:`effective_gates`), and their burials within twice their combined standard error."""
     tr1, row1, (ext1, y1), *_ = first
     tr2, row2, (ext2, y2), *_ = second
     if row1["kind"] != "pipeline" or row2["kind"] != "pipeline":
         return False
     if not (tr2.first > tr1.first and tr2.last > tr1.last):
         return False
-    if not (-options.max_gap_pings <= tr2.first - tr1.last <= options.max_gap_pings + 1):
-        return False
     s1, s2 = frame.ping_s[tr1.first:tr1.last + 1], frame.ping_s[tr2.first:tr2.last + 1]
+    gap_pings = tr2.first - tr1.last
+    if not (-options.max_gap_pings <= gap_pings
+            and (gap_pings <= options.max_gap_pings + 1 or s2[0] - s1[-1] <= options.join_gap_m)):
+        return False
     at = 0.5 * (s1[-1] + s2[0])
     dy = end_value(s1[-END_PINGS:], y1[-END_PINGS:], at) - end_value(s2[:END_PINGS], y2[:END_PINGS], at)
     gate = max(effective_gates(frame, tr1, y1, options)[0], effective_gates(frame, tr2, y2, options)[0])

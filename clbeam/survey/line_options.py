@@ -30,6 +30,13 @@ class LineOptions:
         Pings with a detection a line needs.
     max_gap_pings : int
         Imaged pings in a row without a detection a line may bridge.
+    join_gap_m : float
+        Longest stretch along the track (m) between two ``pipeline`` lines
+        end to end that are still joined into one when they line up across
+        it and agree in burial (:mod:`clbeam.survey.line_joins`): a pipe
+        whose echoes stop for a while (a missing or deeper section, a
+        stretch in dense clutter); at least ``max_gap_pings + 1`` imaged
+        pings are joined whatever the distance.
     fit_hits : int
         Hits of the local fit that predicts the line's next ping.
     fit_length_m : float
@@ -76,6 +83,7 @@ class LineOptions:
     seed_hits: int = 8
     min_hits: int = 5
     max_gap_pings: int = 6
+    join_gap_m: float = 100.0
     fit_hits: int = 8
     fit_length_m: float = 120.0
     min_score: float = 4.0
@@ -89,7 +97,7 @@ class LineOptions:
 
     def __post_init__(self):
         for name in ("across_gate_m", "burial_gate_m", "fit_length_m", "max_burial_m", "max_exposure_m",
-                     "burial_resolution_m", "nominal_spacing_m"):
+                     "burial_resolution_m", "nominal_spacing_m", "join_gap_m"):
             v = getattr(self, name)
             require(isinstance(v, numbers.Real) and math.isfinite(v) and v > 0, OptionError,
                     f"line option {name} must be a number > 0, got {v!r}")
