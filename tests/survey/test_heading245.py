@@ -69,7 +69,8 @@ def test_the_rough_pipe_and_the_smooth_one_at_8_degrees_read_their_burials(surve
 
 
 @pytest.mark.xfail(strict=True, reason="open: in seed 0 S1 reads +0.54 m and S2 -0.59 m in burial, beyond 0.5 m "
-                                       "(within two standard errors, 0.31 and 0.32 m)")
+                                       "(within two standard errors, 0.31 and 0.32 m; S2, 420 m out in 180 m of "
+                                       "water, lies 67 degrees from nadir, beyond the burial target's 60)")
 def test_positions_and_burials_meet_the_validation_targets(surveys):
     """The validation targets over the three pipes and three seeds: position RMS within 0.5 m for every one,
     burial within 0.5 m for at least 90 % (all nine), and within two reported standard errors for at least
