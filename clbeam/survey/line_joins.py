@@ -4,7 +4,9 @@ other stops, on one path and at one burial.
 A pipe's echoes can change their nature along it: its diffuse echo where it
 crosses the plane over some pings and its specular image, moved to the
 crossing (:mod:`clbeam.survey.line_duplicates`), over others; or the
-search seeds two tracks either side of a few pings without a detection.
+search seeds two tracks either side of a few pings without a detection,
+or of a stretch where the pipe is not seen at all (up to ``join_gap_m``
+along the track: a missing or deeper section).
 :func:`joined_end_to_end` joins such pieces; the joined line itself is
 made by the caller (it needs the navigation).
 """
