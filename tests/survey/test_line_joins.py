@@ -26,23 +26,15 @@ def _pieces(rng, second_shift_m: float = 0.0, second_burial_m: float = 0.5, n: i
     a = math.radians(heading_deg)
     ping, y, z, cf, level = [], [], [], [], []
     for k in range(n):
-        if k in silent:
-            n_c = rng.poisson(0.01 * 300)
-            ping += [k] * n_c
-            y += list(rng.uniform(-300, 300, n_c))
-            z += list(depth + rng.uniform(-2, 25, n_c))
-            cf += list(rng.uniform(0.4, 0.6, n_c))
-            level += list(rng.uniform(-95, -85, n_c))
-            continue
-        second = k >= 14
+        second, echo = k >= 14, k not in silent
         y_c = 150.0 + 8.2 * k * math.tan(a) + (second_shift_m if second else 0.0)
         z_c = depth + (second_burial_m if second else 0.5)
         n_c = rng.poisson(0.01 * 300)
-        ping += [k] * (1 + n_c)
-        y += [y_c + rng.normal(0, 0.3)] + list(rng.uniform(-300, 300, n_c))
-        z += [z_c + rng.normal(0, 0.1)] + list(depth + rng.uniform(-2, 25, n_c))
-        cf += [rng.uniform(0.6, 0.8)] + list(rng.uniform(0.4, 0.6, n_c))
-        level += [-72.0 if second else -70.0] + list(rng.uniform(-95, -85, n_c))
+        ping += [k] * (int(echo) + n_c)
+        y += ([y_c + rng.normal(0, 0.3)] if echo else []) + list(rng.uniform(-300, 300, n_c))
+        z += ([z_c + rng.normal(0, 0.1)] if echo else []) + list(depth + rng.uniform(-2, 25, n_c))
+        cf += ([rng.uniform(0.6, 0.8)] if echo else []) + list(rng.uniform(0.4, 0.6, n_c))
+        level += ([-72.0 if second else -70.0] if echo else []) + list(rng.uniform(-95, -85, n_c))
     nav = SurveyNavigation(n, 2.05)
     nav.time_s[:] = 4.0 * np.arange(n)
     imaged = np.ones(n, dtype=bool)

@@ -384,7 +384,7 @@ def test_a_lines_burial_error_follows_its_burials_scatter_not_their_stated_sigma
 
 @pytest.mark.parametrize("kwargs", [{"across_gate_m": 0}, {"seed_hits": 20}, {"max_angle_deg": 90},
                                     {"min_burial_m": 5, "max_burial_m": 2}, {"max_gap_pings": -1},
-                                    {"min_score": math.nan}])
+                                    {"min_score": math.nan}, {"join_gap_m": -5.0}, {"join_gap_m": math.inf}])
 def test_bad_line_options_are_refused_in_one_line(kwargs):
     with pytest.raises(OptionError) as e:
         LineOptions(**kwargs)
