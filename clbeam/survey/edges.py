@@ -93,14 +93,17 @@ class EdgeProbe:
         self.imaging = dataclasses.replace(imaging or ImagingOptions(), interp="cubic", beams=None, upsample=None)
         self._files: dict = {}
         self._imager = None
+        self._read: dict = {}  # (ping, range, angle) -> u
 
     def __call__(self, pings: np.ndarray, range_m: np.ndarray, angle_deg: np.ndarray) -> np.ndarray:
         u = np.full(len(pings), math.nan)
         try:
-            for k, (g, r, a) in enumerate(zip(pings, range_m, angle_deg)):
-                profile = self._profile(int(g), float(r), float(a))
-                if profile is not None:
-                    u[k] = 2 * edge_spacing_m(profile, PROFILE_STEP_M) / self.column_length_m
+            for k, key in enumerate(zip((int(g) for g in pings), map(float, range_m), map(float, angle_deg))):
+                if key not in self._read:  # a detection probed before (the lines found again) is not imaged again
+                    profile = self._profile(*key)
+                    self._read[key] = (math.nan if profile is None else
+                                       2 * edge_spacing_m(profile, PROFILE_STEP_M) / self.column_length_m)
+                u[k] = self._read[key]
         finally:
             self.close()
         return u

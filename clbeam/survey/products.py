@@ -6,7 +6,9 @@ sound speed, the seabed fitted to the ping's peaks) and the detections
 above the map threshold, the only survey-wide arrays kept (about 200 bytes
 per detection and 4 per peak); the detections are associated into objects
 (:func:`clbeam.survey.association.associate`) and tracked into lines
-(:func:`clbeam.survey.line_products.survey_lines`).  The second pass
+(:func:`clbeam.survey.line_products.survey_lines`), found again where lines
+lying on or above the seabed held its upper edge
+(:func:`clbeam.survey.seabed_refit.seabed_off_lines`).  The second pass
 georeferences every peak and streams it to the group ``peaks``, the CSV and
 the GeoJSON (:class:`clbeam.io.survey_products.PeakTableWriter`).  Then the
 objects, the lines, the store's per-ping variables and attributes, and the
@@ -17,6 +19,7 @@ Every product holds each committed ping exactly once.
 from __future__ import annotations
 
 import array
+import contextlib
 import dataclasses
 import json
 import logging
@@ -58,6 +61,7 @@ from clbeam.survey.inputs import one_line
 from clbeam.survey.line_products import LineDetections, SurveyLines, line_rows, survey_lines, track_distance_m
 from clbeam.survey.options import SurveyOptions
 from clbeam.survey.plots import plot_persistence, plot_survey_map
+from clbeam.survey.seabed_refit import seabed_off_lines
 
 log = logging.getLogger(__name__)
 
@@ -144,6 +148,7 @@ class _FirstPass:
     n_rows: int
     sonar: dict
     seabed: np.ndarray = None
+    seabed_peaks: list = None
 
 
 def finalize_survey(output, options: SurveyOptions, *, failures=(), inputs=None) -> SurveyProducts:
@@ -184,8 +189,8 @@ def finalize_survey(output, options: SurveyOptions, *, failures=(), inputs=None)
     centre = np.stack([first.per_ping["centre_y"], first.per_ping["centre_z"]], axis=1)
     smear = _smear_depth(det, centre, math.radians(options.lines.beam_width_deg))
     probe = _edge_probe(output, inputs, first, det, centre, options)
-    lines = survey_lines(LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db, slide, smear, probe),
-                         first.seabed, centre, first.per_ping["imaged"], nav, options.lines)
+    lines = _find_lines(first, det, LineDetections(det.ping, det.y, det.z, det.cf, det.intensity_db, slide, smear,
+                                                   probe), centre, options)
     row_labels = {c: np.full(first.n_rows, -1, dtype=np.int64) for c in ("object", "line")}
     row_labels["object"][det.row] = det.labels
     row_labels["line"][det.row] = lines.labels
@@ -206,6 +211,42 @@ def finalize_survey(output, options: SurveyOptions, *, failures=(), inputs=None)
                           files=files, track_km=track_length_km(nav, first.per_ping["imaged"]),
                           detections={"ping": det.ping, "y_m": det.y, "z_m": det.z, "file_index": first.per_ping["file_index"],
                                       "file_ping": first.per_ping["file_ping"]})
+
+
+def _find_lines(first: _FirstPass, det: _Detections, line_det: LineDetections, centre_yz: np.ndarray,
+                options: SurveyOptions) -> SurveyLines:
+    """The survey's lines: found once over the first seabed without the edge probe (its lines only tell where
+    the seabed's upper edge may lie on them), then with it over the seabed fitted again without the lines
+    lying on or above it (:func:`clbeam.survey.seabed_refit.seabed_off_lines`), or over the first where none
+    does (the first lines are kept where there is no probe either, or no line)."""
+    imaged, nav = first.per_ping["imaged"], first.nav
+    with _said_once(logging.getLogger(survey_lines.__module__)):
+        quick = survey_lines(dataclasses.replace(line_det, edge_probe=None), first.seabed, centre_yz, imaged, nav,
+                             options.lines)
+        refit = seabed_off_lines(first.seabed_peaks, first.seabed, quick, (det.ping, det.y, det.z), centre_yz, nav,
+                                 options.lines)
+        if refit is None and (line_det.edge_probe is None or not quick.rows):  # the probe only describes kept lines
+            return quick
+        return survey_lines(line_det, first.seabed if refit is None else refit, centre_yz, imaged, nav,
+                            options.lines)
+
+
+@contextlib.contextmanager
+def _said_once(logger: logging.Logger):
+    """Within it, ``logger`` says each message once (the lines are searched twice)."""
+    said = set()
+
+    def first_time(record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        new = message not in said
+        said.add(message)
+        return new
+
+    logger.addFilter(first_time)
+    try:
+        yield
+    finally:
+        logger.removeFilter(first_time)
 
 
 def _edge_probe(output: Path, inputs, first: _FirstPass, det: _Detections, centre_yz: np.ndarray,
@@ -360,7 +401,7 @@ def _read_ledger(output: Path, names: list, n: int, options: SurveyOptions) -> _
                                                                for a in (det_y, det_z, det_cf)),
                        row=np.asarray(det_row, dtype=np.int64), intensity_db=np.asarray(det_level, dtype=np.float64),
                        snr_db=np.asarray(det_snr, dtype=np.float64))
-    return _FirstPass(nav, per_ping, dets, row, sonar, pooled_seabed_lines(seabed_peaks))
+    return _FirstPass(nav, per_ping, dets, row, sonar, pooled_seabed_lines(seabed_peaks), seabed_peaks)
 
 
 def peak_csv_columns(nav: SurveyNavigation, imaging=None) -> list:
