@@ -320,17 +320,24 @@ REFINE_ITERATIONS = 20
 
 def refined_seabed_lines(peaks: list, seabed: np.ndarray, tolerance_m: float = 1.0) -> np.ndarray:
     """Each ping's seabed ``(z0, slope)`` (m, 1) of ``seabed`` (``(n_pings, 2)``) refined on its ``peaks`` as
-    :func:`seabed_line` ends, by Tukey-weighted least squares from it (:data:`REFINE_ITERATIONS` of them): a
-    fit held near where it was (the weights reach ``2 tolerance_m``: it never moves to another layer); as it
-    was where a ping has no fit or fewer than 5 peaks (``peaks`` as :func:`pooled_seabed_lines` takes them)."""
+    :func:`seabed_line` ends, by Tukey-weighted least squares from it (:data:`REFINE_ITERATIONS` of them),
+    where the refined fit stays within ``tolerance_m`` of where it was at nadir and 0.4 depths either side
+    (:data:`POOL_CHECK_DEPTHS`: a tilt moves the swath's ends, not its middle; the weights reach ``2
+    tolerance_m``, and a horizon that close below a weak seabed can draw the fit down to it); as it was
+    otherwise, where a ping has no fit, or fewer than 5 peaks (``peaks`` as :func:`pooled_seabed_lines` takes
+    them)."""
     out = np.array(seabed, dtype=np.float64, copy=True)
     for g, p in enumerate(peaks):
         if p is None or not np.isfinite(out[g]).all():
             continue
         y, z = np.asarray(p[0], dtype=np.float64), np.asarray(p[1], dtype=np.float64)
         ok = np.isfinite(y) & np.isfinite(z)
-        if ok.sum() >= 5:
-            out[g] = _refine(y[ok], z[ok], float(out[g, 0]), float(out[g, 1]), tolerance_m, REFINE_ITERATIONS)
+        if ok.sum() < 5:
+            continue
+        z0, slope = _refine(y[ok], z[ok], float(out[g, 0]), float(out[g, 1]), tolerance_m, REFINE_ITERATIONS)
+        at = POOL_CHECK_DEPTHS * abs(float(out[g, 0]))
+        if np.abs((z0 - out[g, 0]) + (slope - out[g, 1]) * at).max() <= tolerance_m:
+            out[g] = z0, slope
     return out
 
 

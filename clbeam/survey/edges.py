@@ -99,10 +99,11 @@ class EdgeProbe:
         u = np.full(len(pings), math.nan)
         try:
             for k, key in enumerate(zip((int(g) for g in pings), map(float, range_m), map(float, angle_deg))):
-                if key not in self._read:  # a detection probed before (the lines found again) is not imaged again
+                if key not in self._read:  # a detection probed for another line (duplicates, joins): not imaged again
                     profile = self._profile(*key)
-                    self._read[key] = (math.nan if profile is None else
-                                       2 * edge_spacing_m(profile, PROFILE_STEP_M) / self.column_length_m)
+                    if profile is None:  # not profiled (a warning said why): tried again if asked again
+                        continue
+                    self._read[key] = 2 * edge_spacing_m(profile, PROFILE_STEP_M) / self.column_length_m
                 u[k] = self._read[key]
         finally:
             self.close()

@@ -74,7 +74,11 @@ def seabed_off_lines(peaks: list, seabed: np.ndarray, lines: SurveyLines, det_py
     kept = [None if p is None else np.ones(len(p[0]), dtype=bool) for p in peaks]
     for k in edge:
         pings, path_y = lines.ping_paths[k]
-        half = edge_half_width_m(pings, path_y, seabed, centre_yz, nav, options)
+        if pings.size == 0:
+            continue
+        # a ping without a grid centre: the two gates alone
+        half = np.nan_to_num(edge_half_width_m(pings, path_y, seabed, centre_yz, nav, options),
+                             nan=2 * options.across_gate_m)
         mine = lines.labels == k
         at = np.clip(np.searchsorted(pings, det_pyz[0][mine]), 0, pings.size - 1)
         for g, y, h in zip(np.r_[pings, det_pyz[0][mine]], np.r_[path_y, det_pyz[1][mine]], np.r_[half, half[at]]):

@@ -195,3 +195,27 @@ def test_a_survey_probes_its_own_inputs_at_each_detections_range_and_angle(monke
                                 centre, options) is None
     flat = SimpleNamespace(**{**vars(options), "lines": dataclasses.replace(LineOptions(), beam_width_deg=0.0)})
     assert products._edge_probe("s.zarr", ["a.nc", "b.nc"], first, det, centre, flat) is None
+
+
+def test_the_probe_images_a_detection_once_and_tries_a_failed_one_again(monkeypatch):
+    """Asked twice about the same detections (a line described again as a duplicate or a join), the probe
+    profiles each once and reads the same ``u`` (two peaks ``s`` apart give ``2 s / L``); a detection whose
+    ping could not be profiled is tried again each time it is asked about."""
+    calls = []
+    spacing = 0.5
+    profile = np.zeros(121)
+    profile[[10, 10 + int(round(spacing / 0.01))]] = 1.0
+
+    def fake_profile(self, ping, range_m, angle_deg):
+        calls.append(ping)
+        return None if ping == 2 else profile
+
+    monkeypatch.setattr(EdgeProbe, "_profile", fake_profile)
+    probe = EdgeProbe([], np.zeros(3, dtype=int), np.arange(3), L, grid=None)
+    pings, ranges, angles = np.array([0, 1, 2]), np.array([100.0, 200.0, 300.0]), np.array([10.0, 20.0, 30.0])
+    first = probe(pings, ranges, angles)
+    again = probe(pings, ranges, angles)
+    np.testing.assert_allclose(first[:2], 2 * spacing / L, rtol=0.05)
+    np.testing.assert_array_equal(first, again)
+    assert math.isnan(first[2])
+    assert sorted(calls) == [0, 1, 2, 2]
