@@ -307,9 +307,14 @@ def _own_or_pooled(own: tuple | None, pooled: tuple | None, tolerance_m: float) 
     The pooling mends a ping that took another layer and leaves the rest as their own peaks have them."""
     if own is None or pooled is None:
         return pooled if own is None else own
-    at = POOL_CHECK_DEPTHS * abs(float(pooled[0]))
-    apart = np.abs((own[0] - pooled[0]) + (own[1] - pooled[1]) * at).max()
-    return own if apart <= 2 * tolerance_m else pooled
+    return own if planes_apart_m(own, pooled) <= 2 * tolerance_m else pooled
+
+
+def planes_apart_m(a, b) -> float:
+    """How far apart two seabed fits ``(z0, slope)`` (m, 1) lie (m): the largest difference in depth at nadir
+    and 0.4 of ``b``'s depth either side (:data:`POOL_CHECK_DEPTHS`)."""
+    at = POOL_CHECK_DEPTHS * abs(float(b[0]))
+    return float(np.abs((a[0] - b[0]) + (a[1] - b[1]) * at).max())
 
 
 #: iterations of :func:`refined_seabed_lines`' reweighting: from a fit tilted by a metre at the swath's ends the
@@ -334,10 +339,9 @@ def refined_seabed_lines(peaks: list, seabed: np.ndarray, tolerance_m: float = 1
         ok = np.isfinite(y) & np.isfinite(z)
         if ok.sum() < 5:
             continue
-        z0, slope = _refine(y[ok], z[ok], float(out[g, 0]), float(out[g, 1]), tolerance_m, REFINE_ITERATIONS)
-        at = POOL_CHECK_DEPTHS * abs(float(out[g, 0]))
-        if np.abs((z0 - out[g, 0]) + (slope - out[g, 1]) * at).max() <= tolerance_m:
-            out[g] = z0, slope
+        refined = _refine(y[ok], z[ok], float(out[g, 0]), float(out[g, 1]), tolerance_m, REFINE_ITERATIONS)
+        if planes_apart_m(refined, out[g]) <= tolerance_m:
+            out[g] = refined
     return out
 
 

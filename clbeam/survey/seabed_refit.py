@@ -67,19 +67,18 @@ def seabed_off_lines(peaks: list, seabed: np.ndarray, lines: SurveyLines, det_py
     options : LineOptions
         ``across_gate_m`` and ``beam_width_deg``.
     """
-    edge = [k for k, row in enumerate(lines.rows)
-            if row["kind"] in EDGE_KINDS and echo_burial_m(lines.labels == k, det_pyz, seabed) < SEABED_EDGE_BURIAL_M]
+    members = {k: lines.labels == k for k, row in enumerate(lines.rows) if row["kind"] in EDGE_KINDS}
+    edge = [k for k, mine in members.items() if echo_burial_m(mine, det_pyz, seabed) < SEABED_EDGE_BURIAL_M]
     if not edge:
         return None
     kept = [None if p is None else np.ones(len(p[0]), dtype=bool) for p in peaks]
     for k in edge:
-        pings, path_y = lines.ping_paths[k]
+        pings, path_y, mine = *lines.ping_paths[k], members[k]
         if pings.size == 0:
             continue
         # a ping without a grid centre: the two gates alone
         half = np.nan_to_num(edge_half_width_m(pings, path_y, seabed, centre_yz, nav, options),
                              nan=2 * options.across_gate_m)
-        mine = lines.labels == k
         at = np.clip(np.searchsorted(pings, det_pyz[0][mine]), 0, pings.size - 1)
         for g, y, h in zip(np.r_[pings, det_pyz[0][mine]], np.r_[path_y, det_pyz[1][mine]], np.r_[half, half[at]]):
             if peaks[g] is not None:
