@@ -83,6 +83,14 @@ WIDE_SMEAR_LENGTH = 3.0
 #: passes of the gated fit: 2, or for a wide smear 6 (its gate is about the smear, so each pass moves the
 #: window only part of the way to the detections' centre; 12 gave the same paths)
 PATH_PASSES, WIDE_SMEAR_PASSES = 2, 6
+#: the path a line reports (``line_path(..., reported=True)``), not the one its tracks are ranked by, treats a
+#: smear from this half-width (m) as wide and fits it over this many times ``fit_length_m``: one detection's
+#: scatter over a smear of half-width ``h``, ``h / sqrt(3)``, reaches the 0.5 m position target near 0.9 m, and
+#: neighbouring pings see the same stretch of pipe, so their errors do not average out within one fit length;
+#: two, not three, for pipes that curve (20 degrees/km bends a 180 m half-width fit 0.8 m off, a 120 m one
+#: 0.4 m).  Chosen on the tuning draws (discrete: position RMS <= 0.5 m 50 -> 63 of 101, one line 85 -> 88);
+#: the same for the ranking path lost lines whose score fell under the threshold (``docs/lines.md``)
+REPORTED_WIDE_SMEAR_M, REPORTED_WIDE_SMEAR_LENGTH = 1.0, 2.0
 #: a track is joined to one that continues it only when both score at least this on their own (the default
 #: ``min_score``, fixed: at any threshold the lines are then those a build without one counts by score)
 JOIN_MIN_SCORE = 4.0
@@ -685,7 +693,7 @@ def smooth_path(frame: TrackFrame, track: Track, half_width_m: float) -> np.ndar
     return local_linear(s, y, frame.ping_s[track.first:track.last + 1], half_width_m)
 
 
-def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarray:
+def line_path(frame: TrackFrame, track: Track, options: LineOptions, *, reported: bool = False) -> np.ndarray:
     """The line's offset at each ping of its extent (m): :func:`smooth_path` of its members, then
     :data:`PATH_PASSES` times a local straight-line fit of every detection inside its gates about that path,
     weighted by CF (a wide smear, :data:`WIDE_SMEAR_M`: :data:`WIDE_SMEAR_PASSES` fits over
@@ -695,7 +703,9 @@ def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarr
     heading takes in no clutter or neighbour the smear's width away; in burial, :func:`burial_ok` about the
     line's.  A crossing line's echo smears over the stretch of pipe inside
     the transmit beam, several detections a ping across the gate, of which the track holds one; their centre
-    is where the pipe crosses."""
+    is where the pipe crosses.  ``reported``: the path the line reports rather than the one its tracks are
+    ranked by (a wide smear from :data:`REPORTED_WIDE_SMEAR_M`, over :data:`REPORTED_WIDE_SMEAR_LENGTH` times
+    ``fit_length_m``)."""
     half = options.fit_length_m / 2
     path = smooth_path(frame, track, half)
     s_ext = frame.ping_s[track.first:track.last + 1]
@@ -713,8 +723,9 @@ def line_path(frame: TrackFrame, track: Track, options: LineOptions) -> np.ndarr
     # line at a heading, whose gate is its members' spread (a neighbour or clutter the smear's width away stays out)
     smeared = spread >= SMEARED_SPREAD * smear
     widest = np.inf if smeared else max(options.across_gate_m, 2.5 * spread)
-    wide = smeared and smear >= WIDE_SMEAR_M
-    fit_half = half * WIDE_SMEAR_LENGTH if wide else half
+    wide_m, length = (REPORTED_WIDE_SMEAR_M, REPORTED_WIDE_SMEAR_LENGTH) if reported else (WIDE_SMEAR_M, WIDE_SMEAR_LENGTH)
+    wide = smeared and smear >= wide_m
+    fit_half = half * length if wide else half
     for _ in range(WIDE_SMEAR_PASSES if wide else PATH_PASSES):
         slope = np.gradient(path, s_ext)
         gate = np.minimum(across_gate(frame, idx, slope[k], options), widest)
