@@ -74,17 +74,19 @@ SMEAR_CELL_MIN = 2.0
 #: a line whose members' RMS distance from its path is at least this share of the smear's half-width
 #: (``r beam |tan a| / 2``) is smeared (a rough crossing pipe: about 0.25-0.6; a tight line at a heading: 0.02)
 SMEARED_SPREAD = 0.15
-#: a smeared line whose mean smear half-width is at least this (m) is a wide smear: a few detections a ping
-#: scattered uniformly over it, whose centre a fit of ``fit_length_m`` averages too few of (Cross's X: 1.8 m RMS)
+#: for the path tracks are ranked by, a smeared line whose mean smear half-width is at least this (m) is a wide
+#: smear: a few detections a ping scattered uniformly over it, whose centre a fit of ``fit_length_m`` averages too
+#: few of (Cross's X: 1.8 m RMS); the path a line reports has its own, :data:`REPORTED_WIDE_SMEAR_M`
 WIDE_SMEAR_M = 4.0
-#: a wide smear's path is fitted over this many times ``fit_length_m`` (a pipe is straight over a few hundred
-#: metres; at 2 the fit drifted 5 m along a tuning pipe, at 3-5 Cross's X came within 0.7-1.0 m)
+#: the ranking path's wide smear is fitted over this many times ``fit_length_m`` (a pipe is straight over a few
+#: hundred metres; at 2 the fit drifted 5 m along a tuning pipe, at 3-5 Cross's X came within 0.7-1.0 m)
 WIDE_SMEAR_LENGTH = 3.0
 #: passes of the gated fit: 2, or for a wide smear 6 (its gate is about the smear, so each pass moves the
 #: window only part of the way to the detections' centre; 12 gave the same paths)
 PATH_PASSES, WIDE_SMEAR_PASSES = 2, 6
 #: the path a line reports (``line_path(..., reported=True)``), not the one its tracks are ranked by, treats a
-#: smear from this half-width (m) as wide and fits it over this many times ``fit_length_m``: one detection's
+#: smear from this half-width (m) as wide (its passes and echo weights) and fits it over this many times
+#: ``fit_length_m``: one detection's
 #: scatter over a smear of half-width ``h``, ``h / sqrt(3)``, reaches the 0.5 m position target near 0.9 m, and
 #: neighbouring pings see the same stretch of pipe, so their errors do not average out within one fit length;
 #: two, not three, for pipes that curve (20 degrees/km bends a 180 m half-width fit 0.8 m off, a 120 m one

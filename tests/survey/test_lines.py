@@ -630,8 +630,9 @@ def test_a_smeared_lines_reported_path_averages_its_echoes_over_two_fit_lengths(
     """2-3 detections a ping over a 1.6-2.5 m smear (pipes at 8 and 12 degrees, under the ``WIDE_SMEAR_M`` the
     search's path treats as wide): the path a line reports (``reported=True``) fits them over
     ``REPORTED_WIDE_SMEAR_LENGTH`` times the fit length.  On average it lies within 0.9 of the search's path's
-    error of the crossings on the same frames (0.78-0.82 over 40 frames a heading, 0.71-0.89 in blocks of 10),
-    and within 0.6 of the smear's half-width (RMS) on every frame (0.31 at most)."""
+    error of the crossings on the same frames (0.85 on these 24; 0.77-0.82 over 40 frames a heading, 0.68-0.89
+    in blocks of 10; 1.00 were ``reported`` ignored, 0.92 from 2 m, 0.95 over one fit length), and within 0.35
+    of the smear's half-width (RMS) on every frame (0.31 at most; the search's path 0.42 at most)."""
     import clbeam.survey.lines as lines
     assert lines.REPORTED_WIDE_SMEAR_M < 1.6 < lines.WIDE_SMEAR_M
     reported, ranked = [], []
@@ -644,7 +645,7 @@ def test_a_smeared_lines_reported_path_averages_its_echoes_over_two_fit_lengths(
                 path = line_path(frame, t, LineOptions(), **kw)
                 out.append(np.sqrt(np.mean((path - truth[ext]) ** 2)) / half[ext].mean())
     reported, ranked = np.array(reported), np.array(ranked)
-    assert (reported < 0.6).all(), reported
+    assert (reported < 0.35).all(), reported
     assert reported.mean() < 0.9 * ranked.mean(), (reported.mean(), ranked.mean())
 
 
