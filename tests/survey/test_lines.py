@@ -574,6 +574,21 @@ def smeared_crossing_frame(seed: int, per_ping: tuple = (1, 4), n: int = 48, hea
     return frame, truth, half
 
 
+def smeared_tracks(seeds, headings):
+    """Each frame of :func:`smeared_crossing_frame` (2-3 detections a ping) over ``seeds`` and ``headings``
+    with its one long track: ``(seed, frame, track, crossings, smear half-widths)``, the last two a ping."""
+    for seed in seeds:
+        for heading in headings:
+            frame, truth, half = smeared_crossing_frame(seed, per_ping=(2, 4), heading_deg=heading)
+            yield seed, frame, [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30][0], truth, half
+
+
+def path_error(path: np.ndarray, track, truth: np.ndarray, half: np.ndarray) -> float:
+    """RMS distance of a track's path from the crossings over its extent, in mean smear half-widths."""
+    ext = slice(track.first, track.last + 1)
+    return float(np.sqrt(np.mean((path - truth[ext]) ** 2)) / half[ext].mean())
+
+
 def test_a_crossing_line_smeared_over_the_beam_is_one_track_along_its_centre():
     """A rough pipe at 40 degrees 330 m out: each ping sees the stretch inside
     the 4.5-degree beam, several detections over +-10 m across.  One track
@@ -613,14 +628,8 @@ def test_a_wide_smear_with_few_detections_a_ping_is_centred_over_a_longer_fit(mo
     errors = {}
     for fit, wide_m in (("wide", lines.WIDE_SMEAR_M), ("plain", math.inf)):
         monkeypatch.setattr(lines, "WIDE_SMEAR_M", wide_m)
-        errors[fit] = []
-        for seed in range(20, 26):
-            for heading in (25.0, 40.0):
-                frame, truth, half = smeared_crossing_frame(seed, per_ping=(2, 4), heading_deg=heading)
-                t = [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30][0]
-                ext = slice(t.first, t.last + 1)
-                error = np.sqrt(np.mean((line_path(frame, t, LineOptions()) - truth[ext]) ** 2)) / half[ext].mean()
-                errors[fit].append(error)
+        errors[fit] = [path_error(line_path(frame, t, LineOptions()), t, truth, half)
+                       for _, frame, t, truth, half in smeared_tracks(range(20, 26), (25.0, 40.0))]
     wide, plain = np.array(errors["wide"]), np.array(errors["plain"])
     assert (wide < 0.45).all(), wide
     assert wide.mean() < 0.85 * plain.mean(), (wide.mean(), plain.mean())
@@ -636,14 +645,9 @@ def test_a_smeared_lines_reported_path_averages_its_echoes_over_two_fit_lengths(
     import clbeam.survey.lines as lines
     assert lines.REPORTED_WIDE_SMEAR_M < 1.6 < lines.WIDE_SMEAR_M
     reported, ranked = [], []
-    for seed in range(20, 32):
-        for heading in (8.0, 12.0):
-            frame, truth, half = smeared_crossing_frame(seed, per_ping=(2, 4), heading_deg=heading)
-            t = [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30][0]
-            ext = slice(t.first, t.last + 1)
-            for out, kw in ((ranked, {}), (reported, {"reported": True})):
-                path = line_path(frame, t, LineOptions(), **kw)
-                out.append(np.sqrt(np.mean((path - truth[ext]) ** 2)) / half[ext].mean())
+    for _, frame, t, truth, half in smeared_tracks(range(20, 32), (8.0, 12.0)):
+        ranked.append(path_error(line_path(frame, t, LineOptions()), t, truth, half))
+        reported.append(path_error(line_path(frame, t, LineOptions(), reported=True), t, truth, half))
     reported, ranked = np.array(reported), np.array(ranked)
     assert (reported < 0.35).all(), reported
     assert reported.mean() < 0.9 * ranked.mean(), (reported.mean(), ranked.mean())
@@ -658,18 +662,12 @@ def test_a_wide_smears_path_weighs_its_detections_by_their_echo_strength():
     against ``sqrt(<u^2>)`` for ``s = sinc^2(u)``, 0.80: the speckle's second moment costs ``sqrt(2)``, the
     lobe gains more), and within 0.3 of the half-width on every frame (0.12 at most)."""
     weighted, plain = [], []
-    for seed in range(20, 26):
-        for heading in (25.0, 40.0):
-            frame, truth, half = smeared_crossing_frame(seed, per_ping=(2, 4), heading_deg=heading)
-            t = [t for t in find_tracks(frame, LineOptions()) if t.members.size >= 30][0]
-            ext = slice(t.first, t.last + 1)
-            plain.append(np.sqrt(np.mean((line_path(frame, t, LineOptions()) - truth[ext]) ** 2)) / half[ext].mean())
-            rng = np.random.default_rng(seed + 1000)
-            u = (frame.y - truth[frame.ping]) / half[frame.ping]
-            echo = np.where(np.abs(u) <= 1, rng.exponential(1.0, u.size) * np.sinc(u) ** 2,
-                            rng.exponential(0.5, u.size))
-            lit = dataclasses.replace(frame, echo=echo)
-            weighted.append(np.sqrt(np.mean((line_path(lit, t, LineOptions()) - truth[ext]) ** 2)) / half[ext].mean())
+    for seed, frame, t, truth, half in smeared_tracks(range(20, 26), (25.0, 40.0)):
+        plain.append(path_error(line_path(frame, t, LineOptions()), t, truth, half))
+        rng = np.random.default_rng(seed + 1000)
+        u = (frame.y - truth[frame.ping]) / half[frame.ping]
+        echo = np.where(np.abs(u) <= 1, rng.exponential(1.0, u.size) * np.sinc(u) ** 2, rng.exponential(0.5, u.size))
+        weighted.append(path_error(line_path(dataclasses.replace(frame, echo=echo), t, LineOptions()), t, truth, half))
     weighted, plain = np.array(weighted), np.array(plain)
     assert (weighted < 0.3).all(), weighted
     assert weighted.mean() < 0.8 * plain.mean(), (weighted.mean(), plain.mean())
