@@ -221,7 +221,7 @@ def _smear_reach(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: Line
         return 0.0
     k = np.searchsorted(frame.pings, frame.ping[m]) - tr.first
     slope = np.gradient(path_y, s_ext)[k]
-    return float(np.median(2 * SHADOW_BEAMS * smear_half_width(frame, m, slope, options)))
+    return float(np.median(2 * SHADOW_BEAMS * smear_half_width(frame.r[m], slope, options)))
 
 
 def track_gate(frame: TrackFrame, tr: Track, path_y: np.ndarray, options: LineOptions) -> float:

@@ -345,7 +345,7 @@ def _describe(frame: TrackFrame, tr: Track, options: LineOptions, rank, pings_in
     centres, the detections' levels (or ``None``) and the edge probe (or ``None``, :class:`LineDetections`)."""
     sb, centre_yz, level, probe = pings_info
     m = tr.members
-    path_y = line_path(frame, tr, options, reported=True)
+    path_y = line_path(frame, tr, options, reported=True, ranked=rank.path(tr))
     ext = frame.pings[tr.first:tr.last + 1]
     burial, burial_se, spread = line_burial(frame.b[m], frame.b_sigma[m])
     score = rank(tr)

@@ -591,13 +591,14 @@ def across_gate(frame: TrackFrame, idx: np.ndarray, slope, options: LineOptions)
     """
     slope = np.abs(np.asarray(slope, dtype=np.float64))
     base = options.across_gate_m * np.minimum(np.hypot(1.0, slope), 2.0)
-    return np.maximum(np.maximum(base, 2 * frame.y_sigma[idx]), smear_half_width(frame, idx, slope, options))
+    return np.maximum(np.maximum(base, 2 * frame.y_sigma[idx]), smear_half_width(frame.r[idx], slope, options))
 
 
-def smear_half_width(frame: TrackFrame, idx: np.ndarray, slope, options: LineOptions) -> np.ndarray:
-    """Half the smear (m) across of a line of slope ``dy/ds`` crossing the track at detections ``idx``: its
-    echo comes from the stretch of it inside the transmit beam, ``r beam |tan a|`` across at slant range ``r``."""
-    return 0.5 * math.radians(options.beam_width_deg) * frame.r[idx] * np.abs(np.asarray(slope, dtype=np.float64))
+def smear_half_width(r, slope, options: LineOptions) -> np.ndarray:
+    """Half the smear (m) across of a line of slope ``dy/ds`` crossing the track at slant range ``r`` (m; a
+    detection's from its grid centre): its echo comes from the stretch of it inside the transmit beam,
+    ``r beam |tan a|`` across."""
+    return 0.5 * math.radians(options.beam_width_deg) * np.asarray(r) * np.abs(np.asarray(slope, dtype=np.float64))
 
 
 def burial_ok(b: np.ndarray, sigma: np.ndarray, b_hat: float, options: LineOptions) -> np.ndarray:
@@ -695,7 +696,8 @@ def smooth_path(frame: TrackFrame, track: Track, half_width_m: float) -> np.ndar
     return local_linear(s, y, frame.ping_s[track.first:track.last + 1], half_width_m)
 
 
-def line_path(frame: TrackFrame, track: Track, options: LineOptions, *, reported: bool = False) -> np.ndarray:
+def line_path(frame: TrackFrame, track: Track, options: LineOptions, *, reported: bool = False,
+              ranked: np.ndarray | None = None) -> np.ndarray:
     """The line's offset at each ping of its extent (m): :func:`smooth_path` of its members, then
     :data:`PATH_PASSES` times a local straight-line fit of every detection inside its gates about that path,
     weighted by CF (a wide smear, :data:`WIDE_SMEAR_M`: :data:`WIDE_SMEAR_PASSES` fits over
@@ -707,7 +709,8 @@ def line_path(frame: TrackFrame, track: Track, options: LineOptions, *, reported
     the transmit beam, several detections a ping across the gate, of which the track holds one; their centre
     is where the pipe crosses.  ``reported``: the path the line reports rather than the one its tracks are
     ranked by (a wide smear from :data:`REPORTED_WIDE_SMEAR_M`, over :data:`REPORTED_WIDE_SMEAR_LENGTH` times
-    ``fit_length_m``)."""
+    ``fit_length_m``); ``ranked``: the ranking path, already fitted, returned as it is where the reported one
+    would repeat it (a line that is no wide smear by either rule)."""
     half = options.fit_length_m / 2
     path = smooth_path(frame, track, half)
     s_ext = frame.ping_s[track.first:track.last + 1]
@@ -720,13 +723,15 @@ def line_path(frame: TrackFrame, track: Track, options: LineOptions, *, reported
     m = track.members
     km = np.searchsorted(frame.pings, frame.ping[m]) - track.first
     spread = float(np.sqrt(np.mean((frame.y[m] - path[km]) ** 2)))
-    smear = float(np.mean(smear_half_width(frame, m, np.gradient(path, s_ext)[km], options)))
+    smear = float(np.mean(smear_half_width(frame.r[m], np.gradient(path, s_ext)[km], options)))
     # members spread over a good part of the smear: the line is smeared, its gate holds the smear; else a tight
     # line at a heading, whose gate is its members' spread (a neighbour or clutter the smear's width away stays out)
     smeared = spread >= SMEARED_SPREAD * smear
     widest = np.inf if smeared else max(options.across_gate_m, 2.5 * spread)
     wide_m, length = (REPORTED_WIDE_SMEAR_M, REPORTED_WIDE_SMEAR_LENGTH) if reported else (WIDE_SMEAR_M, WIDE_SMEAR_LENGTH)
     wide = smeared and smear >= wide_m
+    if reported and ranked is not None and not (smeared and smear >= min(REPORTED_WIDE_SMEAR_M, WIDE_SMEAR_M)):
+        return ranked  # a wide smear by neither rule: the same fit
     fit_half = half * length if wide else half
     for _ in range(WIDE_SMEAR_PASSES if wide else PATH_PASSES):
         slope = np.gradient(path, s_ext)

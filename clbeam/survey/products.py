@@ -24,6 +24,7 @@ import dataclasses
 import json
 import logging
 import math
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -231,22 +232,38 @@ def _find_lines(first: _FirstPass, det: _Detections, line_det: LineDetections, c
                             options.lines)
 
 
-@contextlib.contextmanager
-def _said_once(logger: logging.Logger):
-    """Within it, ``logger`` says each message once (the lines are searched twice)."""
-    said = set()
+class _OncePerThread(logging.Filter):
+    """Drops a message its thread has said already while that thread is within :func:`_said_once`; other
+    threads' messages pass (surveys finalized side by side in one process keep their own warnings)."""
 
-    def first_time(record: logging.LogRecord) -> bool:
+    def __init__(self):
+        super().__init__()
+        self.local = threading.local()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        said = getattr(self.local, "said", None)
+        if said is None:
+            return True
         message = record.getMessage()
         new = message not in said
         said.add(message)
         return new
 
-    logger.addFilter(first_time)
+
+_ONCE = _OncePerThread()
+
+
+@contextlib.contextmanager
+def _said_once(logger: logging.Logger):
+    """Within it, ``logger`` says each message once to this thread (the lines are searched twice).  The filter
+    stays on the logger, passing everything outside such a block: adding and removing it per survey would change
+    a logger other threads are using."""
+    logger.addFilter(_ONCE)  # once: a filter already there is not added again
+    _ONCE.local.said = set()
     try:
         yield
     finally:
-        logger.removeFilter(first_time)
+        _ONCE.local.said = None
 
 
 def _edge_probe(output: Path, inputs, first: _FirstPass, det: _Detections, centre_yz: np.ndarray,

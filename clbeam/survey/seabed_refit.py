@@ -24,6 +24,7 @@ from clbeam.survey.burial import refined_seabed_lines
 from clbeam.survey.georef import SurveyNavigation
 from clbeam.survey.line_options import LineOptions
 from clbeam.survey.line_products import SurveyLines, smooth_seabed, track_distance_m
+from clbeam.survey.lines import smear_half_width
 
 #: a line whose echoes lie less than this below the seabed (m; the seabed fit's inlier tolerance), or above
 #: it, can hold its pings' upper edge
@@ -124,7 +125,7 @@ def largest_change_m(first: np.ndarray, second: np.ndarray, peaks: list) -> floa
 def edge_half_width_m(pings: np.ndarray, path_y: np.ndarray, seabed: np.ndarray, centre_yz: np.ndarray,
                       nav: SurveyNavigation, options: LineOptions) -> np.ndarray:
     """Half the width across (m) of a line's echoes at each of its ``pings``: its smear over the stretch
-    inside the transmit beam, ``r beam |dy/ds| / 2`` at the slant range ``r`` from the grid centre to its
+    inside the transmit beam (:func:`~clbeam.survey.lines.smear_half_width`) at the slant range from the grid centre to its
     path ``path_y`` (m) on the ``seabed`` (``(n_pings, 2)``; where unknown, the offset from the centre),
     plus twice ``across_gate_m``."""
     s, _ = track_distance_m(nav, pings, options.nominal_spacing_m)
@@ -132,4 +133,4 @@ def edge_half_width_m(pings: np.ndarray, path_y: np.ndarray, seabed: np.ndarray,
     dy = path_y - centre_yz[pings, 0]
     dz = np.nan_to_num(seabed[pings, 0] + seabed[pings, 1] * path_y - centre_yz[pings, 1], nan=0.0)
     r = np.hypot(dy, dz)
-    return 0.5 * math.radians(options.beam_width_deg) * r * np.abs(slope) + 2 * options.across_gate_m
+    return smear_half_width(r, slope, options) + 2 * options.across_gate_m

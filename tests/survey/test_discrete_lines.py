@@ -92,9 +92,9 @@ def test_a_smeared_pipes_line_reports_the_path_averaged_over_two_fit_lengths(mon
     """Pipes of scatterers at 10 and 14 degrees, 340 m across (one echo a ping anywhere in the stretch inside
     the beam: smears of 2.7 and 3.9 m half-width, under the search's ``WIDE_SMEAR_M``): the path
     :func:`survey_lines` reports for the pipeline line is the wide fit of ``line_path(..., reported=True)``.
-    Over 12 surveys its RMS distance from the crossings is on average within 0.85 of the path the tracks are
-    ranked by (``REPORTED_WIDE_SMEAR_M`` out of reach; 0.73-0.75 over 8 seeds a heading), and nearer in at
-    least 10 of them (15 of 16 measured)."""
+    Over 12 surveys its RMS distance from the crossings is on average within 0.85 of the plain fit's, the path
+    the tracks are ranked by where their smear is under ``WIDE_SMEAR_M`` (``REPORTED_WIDE_SMEAR_M`` out of
+    reach; 0.73-0.75 over 8 seeds a heading), and nearer in at least 10 of them (15 of 16 measured)."""
     import clbeam.survey.lines as lines
 
     def error(seed: int, heading: float) -> float:

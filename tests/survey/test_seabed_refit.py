@@ -159,6 +159,25 @@ def test_the_lines_searched_twice_say_each_warning_once(caplog):
                                                         "no along-track distance"]
 
 
+def test_another_threads_warnings_pass_while_one_thread_says_each_once(caplog):
+    """Two surveys finalized side by side: while one thread is within ``_said_once``, a second thread's
+    repeated warnings are all said, and the first thread's repeat is dropped."""
+    import threading
+
+    from clbeam.survey.products import _said_once
+
+    logger = logging.getLogger("clbeam.survey.line_products")
+    with caplog.at_level(logging.WARNING, logger=logger.name):
+        with _said_once(logger):
+            logger.warning("repeated")
+            other = threading.Thread(target=lambda: [logger.warning("repeated") for _ in range(2)])
+            other.start()
+            other.join()
+            logger.warning("repeated")
+    assert [r.getMessage() for r in caplog.records] == ["repeated"] * 3
+    assert [r.thread for r in caplog.records].count(threading.get_ident()) == 1
+
+
 def test_a_horizon_just_under_a_weak_seabed_does_not_draw_the_refinement_down():
     """A seabed of 40 peaks (sd 0.3 m) over a horizon 2.5 m down holding 360, inside the reweighting's reach:
     20 reweightings from the seabed reach the horizon in some draws (8 of 50 here); the refinement keeps
