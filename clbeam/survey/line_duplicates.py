@@ -37,10 +37,18 @@ IMAGE_SEEN_BEAMS = 3.0
 #: a line's path beyond its ends, and its two pieces' paths at a junction (:mod:`clbeam.survey.line_joins`), are
 #: straight lines through this many of its pings nearest the end
 END_PINGS = 6
+#: a line's smear that holds at least this many lines (itself and those that shadow it at its depth, within two
+#: gates) is reported along the median of their paths, the smear's centre: a wide smear (a pipe at a heading far
+#: out) holds several tracks side by side, and the best-scoring one can run along a side of it (the discrete
+#: tuning draws family:36's A, 20 tracks over a 9 m smear: the best one 2.6 m RMS off the pipe, their median 0.9
+#: m; family:13's B, 7 tracks: 1.7 and 0.7 m); fewer, and one or two on a side move the median off it
+#: (family:41's B, 3 tracks: 0.5 and 2.4 m)
+SMEAR_TRACKS = 5
 
 
 def without_duplicates(described: list, frame: TrackFrame, options: LineOptions, ranked: tuple,
-                       geometry: tuple, to_crossing: Callable[[tuple, tuple], tuple | None]) -> list:
+                       geometry: tuple, to_crossing: Callable[[tuple, tuple], tuple | None],
+                       recentred: Callable[[tuple, np.ndarray], tuple]) -> list:
     """The lines less those that shadow a better one (:func:`_shadows`), in line order.  A line that lies on
     another line's specular image is that pipe's specular echo, the other one its crossing
     (:func:`_imaged_crossing`): it is first moved there, ``to_crossing(line, crossing) -> line`` (or ``None``:
@@ -52,7 +60,9 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
     detection in every ping reach the same) the higher mean level: the echo, not its range sidelobes (the
     seabed's nadir echo has peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near 1).  Each line is
     compared as reported and as its echoes lie (:func:`_faces`): a specular line's detections are not where its
-    moved path is."""
+    moved path is.  A kept line whose smear holds :data:`SMEAR_TRACKS` lines or more (:func:`smear_centre`) is
+    reported along their centre, ``recentred(line, path_y) -> line``, and the weaker lines are compared with
+    that path."""
     rank, level = ranked
     loud = [_mean_level(level, d[0].members) for d in described]
     order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
@@ -66,9 +76,37 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
         if moved is not None:
             described[i] = moved
             faces[i], images[i] = _faces(frame, moved, rank, options), None
-        if not any(_shadows(faces[i], faces[j], loud[j] - loud[i]) for j in kept):
-            kept.append(i)
+        if any(_shadows(faces[i], faces[j], loud[j] - loud[i]) for j in kept):
+            continue
+        kept.append(i)
+        centre = smear_centre(described, faces, i)
+        if centre is not None:  # the weaker lines are compared with it as it is reported
+            described[i] = recentred(described[i], centre)
+            faces[i] = _faces(frame, described[i], rank, options)
     return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
+
+
+def smear_centre(described: list, faces: list, i: int) -> np.ndarray | None:
+    """The per-ping median of the paths (m across) of a diffuse ``pipeline`` line ``i`` and of the diffuse lines
+    that shadow it at its depth within two gates (:func:`_shadows` as reported, its first rule), over its pings
+    (each path where it reaches them): the centre of a smear that holds :data:`SMEAR_TRACKS` lines or more;
+    ``None`` for fewer, or for another line."""
+    def diffuse(d):
+        return d[1]["kind"] == "pipeline" and not d[1]["specular"]
+    if not diffuse(described[i]):
+        return None
+    pings, path_y = described[i][2]
+    side = [j for j, d in enumerate(described) if j != i and diffuse(d) and _shadows(faces[j][:1], faces[i][:1], -math.inf)]
+    if 1 + len(side) < SMEAR_TRACKS:
+        return None
+    stack = np.full((1 + len(side), pings.size), np.nan)
+    stack[0] = path_y
+    for row, j in enumerate(side, start=1):
+        p, y = described[j][2]
+        k = np.clip(np.searchsorted(p, pings), 0, p.size - 1)
+        on = p[k] == pings
+        stack[row, on] = y[k[on]]
+    return np.nanmedian(stack, axis=0)
 
 
 def _imaged_crossing(frame: TrackFrame, described: list, i: int, faces: list, images: list,

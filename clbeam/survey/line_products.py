@@ -203,7 +203,8 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
                  for tr in tracks]
     kept = without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
                               (rank, level), (sb, centre_yz, scaled),
-                              lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled), options))
+                              lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled), options),
+                              lambda line, path_y: _recentred(frame, line, path_y, (sb, centre_yz, nav, scaled)))
     kept = joined_end_to_end(kept, frame, options,
                              lambda first, second: _joined(frame, first, second, (sb, centre_yz, nav, scaled), options))
     rows, paths, geo, ping_paths, labels = _numbered(kept, order, n)
@@ -415,6 +416,19 @@ def _moved_to_crossing(frame: TrackFrame, line: tuple, crossing: tuple, where: t
            "specular": 1, "mean_y_m": float(np.mean(path_y))}
     if math.isfinite(row["burial_m"]):
         row["mean_z_m"] = float(np.nanmean(sb[ext, 0] + sb[ext, 1] * path_y + row["burial_m"]))
+    return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+
+
+def _recentred(frame: TrackFrame, line: tuple, path_y: np.ndarray, where: tuple) -> tuple:
+    """A line (as :func:`_describe` gives it, with its track) reported along ``path_y`` (m across, at each ping of
+    its extent; :func:`~clbeam.survey.line_duplicates.smear_centre`): its mean offset and depth, and its world
+    path, length and heading, again.  ``where``: the pings' seabeds and grid centres, the navigation, and
+    whether the along-track distance is known."""
+    sb, centre_yz, nav, scaled = where
+    tr, row, (ext, _), *_ = line
+    z_line, _ = _line_depth(sb, centre_yz, ext, path_y, row["burial_m"])
+    row = {**row, "mean_y_m": float(np.mean(path_y)),
+           "mean_z_m": float(np.nanmean(z_line)) if np.isfinite(z_line).any() else math.nan}
     return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
 
