@@ -37,9 +37,10 @@ IMAGE_SEEN_BEAMS = 3.0
 #: a line's path beyond its ends, and its two pieces' paths at a junction (:mod:`clbeam.survey.line_joins`), are
 #: straight lines through this many of its pings nearest the end
 END_PINGS = 6
-#: a line's smear that holds at least this many lines (itself and those that shadow it at its depth, within two
-#: gates) is reported along the median of their paths, the smear's centre: a wide smear (a pipe at a heading far
-#: out) holds several tracks side by side, and the best-scoring one can run along a side of it (the discrete
+#: a line's smear that holds at least this many paths (its own and those of the lines that shadow it at its
+#: depth, within two gates) is reported along their median, the smear's centre: a wide
+#: smear (a pipe at a heading far out) holds several tracks side by side, and the best-scoring one can run along a
+#: side of it (the discrete
 #: tuning draws family:36's A, 20 tracks over a 9 m smear: the best one 2.6 m RMS off the pipe, their median 0.9
 #: m; family:13's B, 7 tracks: 1.7 and 0.7 m); fewer, and one or two on a side move the median off it
 #: (family:41's B, 3 tracks: 0.5 and 2.4 m)
@@ -60,9 +61,9 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
     detection in every ping reach the same) the higher mean level: the echo, not its range sidelobes (the
     seabed's nadir echo has peaks 0.26 and 1.26 m above it, 18 and 31 dB down, with CF near 1).  Each line is
     compared as reported and as its echoes lie (:func:`_faces`): a specular line's detections are not where its
-    moved path is.  A kept line whose smear holds :data:`SMEAR_TRACKS` lines or more (:func:`smear_centre`) is
+    moved path is.  A kept line whose smear holds :data:`SMEAR_TRACKS` paths or more (:func:`smear_centre`) is
     reported along their centre, ``recentred(line, path_y) -> line``, and the weaker lines are compared with
-    that path."""
+    that path and its image."""
     rank, level = ranked
     loud = [_mean_level(level, d[0].members) for d in described]
     order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
@@ -79,33 +80,37 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
         if any(_shadows(faces[i], faces[j], loud[j] - loud[i]) for j in kept):
             continue
         kept.append(i)
-        centre = smear_centre(described, faces, i)
+        centre = smear_centre(described, faces, i, kept)
         if centre is not None:  # the weaker lines are compared with it as it is reported
             described[i] = recentred(described[i], centre)
             faces[i] = _faces(frame, described[i], rank, options)
+            images[i] = _image_face(frame, described[i], faces[i][0], geometry, options)
     return [described[i] for i in sorted(kept, key=lambda i: (described[i][0].first, described[i][1]["mean_y_m"]))]
 
 
-def smear_centre(described: list, faces: list, i: int) -> np.ndarray | None:
-    """The per-ping median of the paths (m across) of a diffuse ``pipeline`` line ``i`` and of the diffuse lines
-    that shadow it at its depth within two gates (:func:`_shadows` as reported, its first rule), over its pings
-    (each path where it reaches them): the centre of a smear that holds :data:`SMEAR_TRACKS` lines or more;
-    ``None`` for fewer, or for another line."""
+def smear_centre(described: list, faces: list, i: int, kept: list) -> np.ndarray | None:
+    """The centre of a diffuse ``pipeline`` line ``i``'s smear (m across, at each of its pings): the median of
+    the paths of the line and of the diffuse lines not ``kept`` that shadow it at its depth within two gates
+    (:func:`_shadows` as reported, its first rule), each where it reaches; ``None`` where fewer than
+    :data:`SMEAR_TRACKS` lie in the smear, or for another line.  Tracks whose gates hold the same detections
+    fit the same path: a path the search found more often weighs more.  Where fewer than ``SMEAR_TRACKS`` paths
+    reach a ping the median is still taken (its own path there instead, the discrete tuning draws lost a pipe's
+    line, family:13's B, 0.69 -> 1.43 m, and joined another's pieces no more, 15's A)."""
     def diffuse(d):
         return d[1]["kind"] == "pipeline" and not d[1]["specular"]
     if not diffuse(described[i]):
         return None
     pings, path_y = described[i][2]
-    side = [j for j, d in enumerate(described) if j != i and diffuse(d) and _shadows(faces[j][:1], faces[i][:1], -math.inf)]
-    if 1 + len(side) < SMEAR_TRACKS:
-        return None
+    side = [j for j, d in enumerate(described) if j != i and j not in kept and diffuse(d)
+            and _shadows(faces[j][:1], faces[i][:1], -math.inf)]
     stack = np.full((1 + len(side), pings.size), np.nan)
     stack[0] = path_y
     for row, j in enumerate(side, start=1):
         p, y = described[j][2]
-        k = np.clip(np.searchsorted(p, pings), 0, p.size - 1)
-        on = p[k] == pings
-        stack[row, on] = y[k[on]]
+        _, a, b = np.intersect1d(pings, p, return_indices=True)
+        stack[row, a] = y[b]
+    if stack.shape[0] < SMEAR_TRACKS:
+        return None
     return np.nanmedian(stack, axis=0)
 
 

@@ -416,19 +416,29 @@ def _moved_to_crossing(frame: TrackFrame, line: tuple, crossing: tuple, where: t
            "specular": 1, "mean_y_m": float(np.mean(path_y))}
     if math.isfinite(row["burial_m"]):
         row["mean_z_m"] = float(np.nanmean(sb[ext, 0] + sb[ext, 1] * path_y + row["burial_m"]))
-    return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+    return _with_path(frame, tr, row, path_y, nav, scaled)
 
 
 def _recentred(frame: TrackFrame, line: tuple, path_y: np.ndarray, where: tuple) -> tuple:
     """A line (as :func:`_describe` gives it, with its track) reported along ``path_y`` (m across, at each ping of
     its extent; :func:`~clbeam.survey.line_duplicates.smear_centre`): its mean offset and depth, and its world
-    path, length and heading, again.  ``where``: the pings' seabeds and grid centres, the navigation, and
-    whether the along-track distance is known."""
+    path, length and heading, again; its score, burial and kind are its track's (the path moves by metres at
+    most, its angle from nadir by a fraction of a degree).  ``where``: the pings' seabeds and grid centres, the
+    navigation, and whether the along-track distance is known."""
     sb, centre_yz, nav, scaled = where
     tr, row, (ext, _), *_ = line
     z_line, _ = _line_depth(sb, centre_yz, ext, path_y, row["burial_m"])
     row = {**row, "mean_y_m": float(np.mean(path_y)),
            "mean_z_m": float(np.nanmean(z_line)) if np.isfinite(z_line).any() else math.nan}
+    return _with_path(frame, tr, row, path_y, nav, scaled)
+
+
+def _with_path(frame: TrackFrame, tr: Track, row: dict, path_y: np.ndarray, nav: SurveyNavigation,
+               scaled: bool) -> tuple:
+    """A line as :func:`_describe` gives it, with its track: ``(track, row, (pings, path_y), path, lonlat)``, its
+    world path, length, heading and ends filled in ``row`` (:func:`_world_path`); ``path_y`` (m across) at each
+    ping of the track's extent."""
+    ext = frame.pings[tr.first:tr.last + 1]
     return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
 
 
@@ -459,7 +469,7 @@ def _joined(frame: TrackFrame, first: tuple, second: tuple, where: tuple, option
            "mean_z_m": float(np.nanmean(z_line)) if math.isfinite(nadir_angle) else math.nan,
            "detected_fraction": float(members.size / ext.size),
            "specular": int(row1["specular"] or row2["specular"])}
-    return (tr, row, (ext, path_y), *_world_path(row, ext, path_y, frame.ping_s[tr.first:tr.last + 1], nav, scaled))
+    return _with_path(frame, tr, row, path_y, nav, scaled)
 
 
 def line_ranker(frame: TrackFrame, options: LineOptions):

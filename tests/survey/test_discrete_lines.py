@@ -116,10 +116,10 @@ def test_a_wide_smear_holding_several_lines_reports_their_centre(monkeypatch):
     """Pipes of scatterers at 25 degrees, 500 m across in 200 m of water, with eight echoes a ping anywhere in
     the stretch inside the beam (a smear of 9 m half-width, several tracks side by side in it, the way a pipe
     far out at a heading holds them in the discrete survey draws): the pipeline line's path is the median of
-    the paths of the lines in its smear (``SMEAR_TRACKS``).  Against the crossings, its RMS error over six
-    surveys is on average within 0.8 of the best-scoring line's own path (``SMEAR_TRACKS`` out of reach), and
-    no worse in at least four of them (measured over three other sets of six seeds: 0.49-0.68, no worse in 18
-    of 18)."""
+    the paths of the lines in its smear (``SMEAR_TRACKS``), its row's mean offset that path's.  Against
+    the crossings, its RMS error over six surveys is on average within 0.8 of the path of the line the search
+    keeps (``SMEAR_TRACKS`` out of reach: 0.56 measured), nearer in at least two of them and further in none
+    by more than 5 cm (measured over three other sets of six seeds: 0.49-0.71, further in none of 18)."""
     import clbeam.survey.line_duplicates as duplicates
 
     def error(seed: int) -> float:
@@ -129,12 +129,14 @@ def test_a_wide_smear_holding_several_lines_reports_their_centre(monkeypatch):
         k = max((i for i, row in enumerate(found.rows) if row["kind"] == "pipeline"),
                 key=lambda i: found.rows[i]["n_pings"])
         pings, y = found.ping_paths[k]
+        assert found.rows[k]["mean_y_m"] == pytest.approx(float(np.mean(y)), abs=1e-9)
         return float(np.sqrt(np.mean((y - (500.0 + 8.2 * pings * math.tan(a))) ** 2)))
     centred = np.array([error(seed) for seed in range(6)])
     monkeypatch.setattr(duplicates, "SMEAR_TRACKS", math.inf)
-    best = np.array([error(seed) for seed in range(6)])
-    assert centred.mean() < 0.8 * best.mean(), (centred, best)
-    assert np.count_nonzero(centred <= best + 1e-9) >= 4, (centred, best)
+    kept = np.array([error(seed) for seed in range(6)])
+    assert centred.mean() < 0.8 * kept.mean(), (centred, kept)
+    assert np.count_nonzero(centred < kept - 0.05) >= 2, (centred, kept)
+    assert not np.any(centred > kept + 0.05), (centred, kept)
 
 
 def test_a_pipe_along_the_track_is_not_raised():
