@@ -38,9 +38,8 @@ IMAGE_SEEN_BEAMS = 3.0
 #: straight lines through this many of its pings nearest the end
 END_PINGS = 6
 #: a line's smear that holds at least this many paths (its own and those of the lines that shadow it at its
-#: depth, within two gates) is reported along their median, the smear's centre: a wide
-#: smear (a pipe at a heading far out) holds several tracks side by side, and the best-scoring one can run along a
-#: side of it (the discrete
+#: depth, within two gates) is reported along their median, the smear's centre: a wide smear (a pipe at a heading
+#: far out) holds several tracks side by side, and the best-scoring one can run along a side of it (the discrete
 #: tuning draws family:36's A, 20 tracks over a 9 m smear: the best one 2.6 m RMS off the pipe, their median 0.9
 #: m; family:13's B, 7 tracks: 1.7 and 0.7 m); fewer, and one or two on a side move the median off it
 #: (family:41's B, 3 tracks: 0.5 and 2.4 m)
@@ -93,9 +92,9 @@ def smear_centre(described: list, faces: list, i: int, kept: list) -> np.ndarray
     the paths of the line and of the diffuse lines not ``kept`` that shadow it at its depth within two gates
     (:func:`_shadows` as reported, its first rule), each where it reaches; ``None`` where fewer than
     :data:`SMEAR_TRACKS` lie in the smear, or for another line.  Tracks whose gates hold the same detections
-    fit the same path: a path the search found more often weighs more.  Where fewer than ``SMEAR_TRACKS`` paths
-    reach a ping the median is still taken (its own path there instead, the discrete tuning draws lost a pipe's
-    line, family:13's B, 0.69 -> 1.43 m, and joined another's pieces no more, 15's A)."""
+    fit the same path: a path the search found more often weighs more.  The median is taken at every ping, also
+    where fewer than ``SMEAR_TRACKS`` paths reach it (keeping the line's own path there lost a pipe's line on
+    the discrete tuning draws, family:13's B, 0.69 -> 1.43 m, and a join, 15's A)."""
     def diffuse(d):
         return d[1]["kind"] == "pipeline" and not d[1]["specular"]
     if not diffuse(described[i]):
