@@ -48,7 +48,7 @@ SMEAR_TRACKS = 5
 
 def without_duplicates(described: list, frame: TrackFrame, options: LineOptions, ranked: tuple,
                        geometry: tuple, to_crossing: Callable[[tuple, tuple], tuple | None],
-                       recentred: Callable[[tuple, np.ndarray], tuple]) -> list:
+                       recentred: Callable[[tuple, np.ndarray], tuple], carried: int = 0) -> list:
     """The lines less those that shadow a better one (:func:`_shadows`), in line order.  A line that lies on
     another line's specular image is that pipe's specular echo, the other one its crossing
     (:func:`_imaged_crossing`): it is first moved there, ``to_crossing(line, crossing) -> line`` (or ``None``:
@@ -62,10 +62,14 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
     compared as reported and as its echoes lie (:func:`_faces`): a specular line's detections are not where its
     moved path is.  A kept line whose smear holds :data:`SMEAR_TRACKS` paths or more (:func:`smear_centre`) is
     reported along their centre, ``recentred(line, path_y) -> line``, and the weaker lines are compared with
-    that path and its image."""
+    that path and its image.  The last ``carried`` lines, those an earlier search of the same detections kept
+    (over another seabed), are judged after all the others: one stays only where it shadows none kept and
+    none kept shadows it, a line that search found and this one lost; nor does it count in a smear's
+    centre."""
     rank, level = ranked
     loud = [_mean_level(level, d[0].members) for d in described]
-    order = sorted(range(len(described)), key=lambda i: (-described[i][1]["score"], -loud[i]))
+    late = len(described) - carried
+    order = sorted(range(len(described)), key=lambda i: (i >= late, -described[i][1]["score"], -loud[i]))
     faces = [_faces(frame, d, rank, options) for d in described]
     images = [_image_face(frame, d, faces[i][0], geometry, options) for i, d in enumerate(described)]
     described = list(described)
@@ -78,8 +82,10 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
             faces[i], images[i] = _faces(frame, moved, rank, options), None
         if any(_shadows(faces[i], faces[j], loud[j] - loud[i]) for j in kept):
             continue
+        if i >= late and any(_shadows(faces[j], faces[i], loud[i] - loud[j]) for j in kept):
+            continue
         kept.append(i)
-        centre = smear_centre(described, faces, i, kept)
+        centre = smear_centre(described[:late], faces, i, kept) if i < late else None
         if centre is not None:  # the weaker lines are compared with it as it is reported
             described[i] = recentred(described[i], centre)
             faces[i] = _faces(frame, described[i], rank, options)

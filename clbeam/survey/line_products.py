@@ -104,6 +104,10 @@ class SurveyLines:
         ``score_path(pings, y, burial=None) -> float``: the score a line
         would have that followed a given path (:func:`path_score`), in the
         frame the lines were found in; ``None`` where none was searched.
+    tracks : list of Track
+        The kept lines' tracks before their end-to-end joins, members in the
+        frame's detection order (the detections sorted by ping): a search of
+        the same detections over another seabed takes them as candidates.
     """
 
     rows: list
@@ -115,6 +119,7 @@ class SurveyLines:
     ping_paths: list = field(default_factory=list)
     too_few_pings: str | None = None
     score_path: Callable | None = None
+    tracks: list = field(default_factory=list)
 
 
 def smooth_seabed(seabed: np.ndarray, imaged: np.ndarray, half_window: int = 4) -> np.ndarray:
@@ -156,7 +161,7 @@ def track_distance_m(nav: SurveyNavigation, pings: np.ndarray, nominal_spacing_m
 
 
 def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray, imaged: np.ndarray,
-                 nav: SurveyNavigation, options: LineOptions) -> SurveyLines:
+                 nav: SurveyNavigation, options: LineOptions, carried: list | None = None) -> SurveyLines:
     """Lines of a survey's detections: found, scored, given a kind, described.
 
     Parameters
@@ -173,6 +178,11 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     nav : SurveyNavigation
         After :meth:`~SurveyNavigation.finish`.
     options : LineOptions
+    carried : list of Track, optional
+        Tracks an earlier search of the same detections kept
+        (:attr:`SurveyLines.tracks`), over another seabed: candidates beside
+        those found here, described and judged with them, so that a line
+        that search found is not lost where this one splits it.
 
     Returns
     -------
@@ -197,6 +207,8 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     frame = _frame(det, order, sb, centre_yz, pings, s_ping)
     rank = line_ranker(frame, options)
     tracks = find_tracks(frame, options, rank=rank)
+    again = _not_found_again(carried or [], tracks)
+    tracks += again
     level = None if det.intensity_db is None else np.asarray(det.intensity_db, dtype=np.float64)[order]
     probe = None if det.edge_probe is None else (lambda members: det.edge_probe(order[members]))
     described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level, probe), nav, scaled))
@@ -204,12 +216,21 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     kept = without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
                               (rank, level), (sb, centre_yz, scaled),
                               lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled), options),
-                              lambda line, path_y: _recentred(frame, line, path_y, (sb, centre_yz, nav, scaled)))
+                              lambda line, path_y: _recentred(frame, line, path_y, (sb, centre_yz, nav, scaled)),
+                              carried=sum(d[1]["score"] >= options.min_score for d in described[len(described) - len(again):]))
+    unjoined = [line[0] for line in kept]
     kept = joined_end_to_end(kept, frame, options,
                              lambda first, second: _joined(frame, first, second, (sb, centre_yz, nav, scaled), options))
     rows, paths, geo, ping_paths, labels = _numbered(kept, order, n)
     return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths,
-                       score_path=lambda p, y, burial=None: path_score(frame, p, y, options, rank.size, burial))
+                       score_path=lambda p, y, burial=None: path_score(frame, p, y, options, rank.size, burial),
+                       tracks=unjoined)
+
+
+def _not_found_again(carried: list, found: list) -> list:
+    """The ``carried`` tracks whose detections no track of ``found`` holds exactly."""
+    held = {tr.members.tobytes() for tr in found}
+    return [tr for tr in carried if tr.members.tobytes() not in held]
 
 
 def _numbered(kept: list, order: np.ndarray, n: int) -> tuple:

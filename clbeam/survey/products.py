@@ -229,7 +229,7 @@ def _find_lines(first: _FirstPass, det: _Detections, line_det: LineDetections, c
         if refit is None and (line_det.edge_probe is None or not quick.rows):  # the probe only describes kept lines
             return quick
         return survey_lines(line_det, first.seabed if refit is None else refit, centre_yz, imaged, nav,
-                            options.lines)
+                            options.lines, carried=quick.tracks)
 
 
 class _OncePerThread(logging.Filter):

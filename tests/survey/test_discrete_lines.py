@@ -1,5 +1,6 @@
 """Lines of pipes whose echo comes from their whole stretch inside the transmit beam (discrete scatterers): the
-smear's deepening taken off their burial, and the shadow a transmit sidelobe casts beside them."""
+smear's deepening taken off their burial, the shadow a transmit sidelobe casts beside them, and a line an
+earlier search kept carried to a search over another seabed."""
 
 from __future__ import annotations
 
@@ -19,15 +20,18 @@ C, LENGTH, F_C = 1500.0, 3.5, 5500.0
 BEAM = C / F_C / LENGTH  # lambda / L at the band's centre (rad)
 
 
-def _lines(det: LineDetections, depth: float, n: int, timed: bool = False):
-    """:func:`survey_lines` without navigation, the grid centres at the surface, a flat seabed ``depth`` deep;
-    ``timed``: pings 4 s apart at 2.05 m/s (8.2 m: the along-track distance known)."""
+def _lines(det: LineDetections, depth: float, n: int, timed: bool = False, carried: list | None = None,
+           seabed: np.ndarray | None = None):
+    """:func:`survey_lines` without navigation, the grid centres at the surface, a flat seabed ``depth`` deep
+    (or ``seabed``, ``(n, 2)``); ``timed``: pings 4 s apart at 2.05 m/s (8.2 m: the along-track distance known);
+    ``carried``: an earlier search's tracks."""
     nav = SurveyNavigation(n, 2.05 if timed else None)
     if timed:
         nav.time_s[:] = 4.0 * np.arange(n)
     imaged = np.ones(n, dtype=bool)
     nav.finish(imaged)
-    return survey_lines(det, np.tile([depth, 0.0], (n, 1)), np.zeros((n, 2)), imaged, nav, LineOptions())
+    seabed = np.tile([depth, 0.0], (n, 1)) if seabed is None else seabed
+    return survey_lines(det, seabed, np.zeros((n, 2)), imaged, nav, LineOptions(), carried=carried)
 
 
 def _main_lobe_offsets(rng, r: float, size: int) -> np.ndarray:
@@ -137,6 +141,41 @@ def test_a_wide_smear_holding_several_lines_reports_their_centre(monkeypatch):
     assert centred.mean() < 0.8 * kept.mean(), (centred, kept)
     assert np.count_nonzero(centred < kept - 0.05) >= 2, (centred, kept)
     assert not np.any(centred > kept + 0.05), (centred, kept)
+
+
+def _along_pipe(found, truth_y: np.ndarray) -> list:
+    """The pipeline lines of ``found`` whose path lies within 3 m of the pipe (``truth_y``, m across at each
+    ping) over half their pings: ``(pings, RMS error m, burial m)``."""
+    out = []
+    for row, (pings, y) in zip(found.rows, found.ping_paths):
+        err = np.abs(y - truth_y[pings])
+        if row["kind"] == "pipeline" and np.count_nonzero(err <= 3.0) >= 0.5 * pings.size:
+            out.append((pings, float(np.sqrt(np.mean(err ** 2))), row["burial_m"]))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_line_the_first_search_kept_is_not_lost_by_the_second(seed, monkeypatch):
+    """The search over the seabed fitted again takes the first search's tracks as candidates.  Where it finds
+    nothing along the pipe (its search made to lose it), the carried track is the pipe's one line over every
+    ping, within 0.5 m RMS of its crossings and 0.3 m of its 1 m burial (0.11-0.22 m and 0.04 m measured);
+    without it there is none.  Where it finds the pipe again over a seabed 4 m wrong over 14 pings (pieces,
+    or the whole line with other detections), no ping has a second line along the pipe."""
+    import clbeam.survey.line_products as products
+
+    n = 40
+    det = _discrete_pipe(np.random.default_rng(seed), 3.0, n, smear=False)
+    truth = 340.0 + 8.2 * np.arange(n) * math.tan(math.radians(3.0))
+    first = _lines(det, 200.0, n, timed=True)
+    wrong = np.tile([200.0, 0.0], (n, 1))
+    wrong[14:28, 0] -= 4.0
+    again = _along_pipe(_lines(det, 200.0, n, timed=True, carried=first.tracks, seabed=wrong), truth)
+    per_ping = np.bincount(np.concatenate([p for p, _, _ in again]), minlength=n)
+    assert again and per_ping.max() == 1, per_ping
+    monkeypatch.setattr(products, "find_tracks", lambda *a, **k: [])
+    assert not _along_pipe(_lines(det, 200.0, n, timed=True), truth)
+    (pings, rms, burial), = _along_pipe(_lines(det, 200.0, n, timed=True, carried=first.tracks), truth)
+    assert pings.size == n and rms < 0.5 and abs(burial - 1.0) < 0.3, (pings, rms, burial)
 
 
 def test_a_pipe_along_the_track_is_not_raised():
