@@ -181,8 +181,9 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     carried : list of Track, optional
         Tracks an earlier search of the same detections kept
         (:attr:`SurveyLines.tracks`), over another seabed: candidates beside
-        those found here, described and judged with them, so that a line
-        that search found is not lost where this one splits it.
+        those found here, judged after them and kept only where no line
+        found here lies along them (a line that search found is not lost
+        where this one splits it).
 
     Returns
     -------
@@ -206,18 +207,18 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
                     "%.1f m apart; their lengths and headings are not reported", options.nominal_spacing_m)
     frame = _frame(det, order, sb, centre_yz, pings, s_ping)
     rank = line_ranker(frame, options)
-    tracks = find_tracks(frame, options, rank=rank)
-    again = _not_found_again(carried or [], tracks)
-    tracks += again
+    found = find_tracks(frame, options, rank=rank)
+    tracks = found + _not_found_again(carried or [], found)
     level = None if det.intensity_db is None else np.asarray(det.intensity_db, dtype=np.float64)[order]
     probe = None if det.edge_probe is None else (lambda members: det.edge_probe(order[members]))
     described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level, probe), nav, scaled))
                  for tr in tracks]
+    late = sum(d[1]["score"] >= options.min_score for d in described[len(found):])  # the carried ones, last
     kept = without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
                               (rank, level), (sb, centre_yz, scaled),
                               lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled), options),
                               lambda line, path_y: _recentred(frame, line, path_y, (sb, centre_yz, nav, scaled)),
-                              carried=sum(d[1]["score"] >= options.min_score for d in described[len(described) - len(again):]))
+                              carried=late)
     unjoined = [line[0] for line in kept]
     kept = joined_end_to_end(kept, frame, options,
                              lambda first, second: _joined(frame, first, second, (sb, centre_yz, nav, scaled), options))
