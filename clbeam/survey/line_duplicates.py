@@ -65,7 +65,9 @@ def without_duplicates(described: list, frame: TrackFrame, options: LineOptions,
     that path and its image.  The last ``carried`` lines, those an earlier search of the same detections kept
     (over another seabed), are judged after all the others: one stays only where it shadows none kept and
     none kept shadows it, a line that search found and this one lost; nor does it count in a smear's
-    centre."""
+    centre.  (A line judged before may still be moved onto a carried line's crossing, as onto any weaker
+    line's, which then shadows it.  A carried line kept can share detections with a kept line that lies along
+    under half of it; each detection is labelled with one of them.)"""
     rank, level = ranked
     loud = [_mean_level(level, d[0].members) for d in described]
     late = len(described) - carried

@@ -94,7 +94,8 @@ class SurveyLines:
     labels : numpy.ndarray
         ``(n,)`` line of each detection (-1: none).
     n_candidates : int
-        Tracks found before the score threshold.
+        Tracks found before the score threshold, with those carried from an
+        earlier search.
     min_score : float
         That threshold.
     too_few_pings : str or None

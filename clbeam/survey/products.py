@@ -8,7 +8,8 @@ per detection and 4 per peak); the detections are associated into objects
 (:func:`clbeam.survey.association.associate`) and tracked into lines
 (:func:`clbeam.survey.line_products.survey_lines`), found again where lines
 lying on or above the seabed held its upper edge
-(:func:`clbeam.survey.seabed_refit.seabed_off_lines`).  The second pass
+(:func:`clbeam.survey.seabed_refit.seabed_off_lines`), the first search's
+lines carried into the second where it finds none along them.  The second pass
 georeferences every peak and streams it to the group ``peaks``, the CSV and
 the GeoJSON (:class:`clbeam.io.survey_products.PeakTableWriter`).  Then the
 objects, the lines, the store's per-ping variables and attributes, and the
@@ -219,7 +220,9 @@ def _find_lines(first: _FirstPass, det: _Detections, line_det: LineDetections, c
     """The survey's lines: found once over the first seabed without the edge probe (its lines only tell where
     the seabed's upper edge may lie on them), then with it over the seabed fitted again without the lines
     lying on or above it (:func:`clbeam.survey.seabed_refit.seabed_off_lines`), or over the first where none
-    does (the first lines are kept where there is no probe either, or no line)."""
+    does (the first lines are kept where there is no probe either, or no line).  The second search takes the
+    first one's kept tracks as candidates (``survey_lines(..., carried=)``): one stays where no line of its own
+    lies along it."""
     imaged, nav = first.per_ping["imaged"], first.nav
     with _said_once(logging.getLogger(survey_lines.__module__)):
         quick = survey_lines(dataclasses.replace(line_det, edge_probe=None), first.seabed, centre_yz, imaged, nav,

@@ -47,9 +47,10 @@ def surveys(tmp_path_factory):
 
 
 def test_each_pipe_is_one_line_with_no_parallel_line_ghost_or_false_line(surveys):
-    """Every pipe, every seed: seen above chance in at least 20 of the 24 pings, one line over at least 90 % of
-    its detectable pings and no second ``pipeline`` line along it (no parallel duplicate, no ghost beneath it),
-    within 1 m RMS of where it crosses each ping's plane; and no ``pipeline`` line near no pipe."""
+    """Every pipe, every seed: seen above chance, with a detection near it in at least 20 of the 24 pings, one
+    line over at least 90 % of its detectable pings and no second ``pipeline`` line along it (no parallel
+    duplicate, no ghost beneath it), within 1 m RMS of where it crosses each ping's plane; and no ``pipeline``
+    line near no pipe."""
     for rows, summary in surveys:
         assert summary["false_lines"] == 0
         for name in PIPES:
@@ -68,8 +69,9 @@ def test_burials_meet_the_validation_target_with_the_smears_deepening_taken_off(
     assert np.count_nonzero(np.abs(errors) <= 2 * se) >= 5, (errors, se)
 
 
-@pytest.mark.xfail(strict=True, reason="open: pipe A (5 degrees to the track, 60 degrees from nadir) lies 0.55-0.65 "
-                                       "m RMS from its crossings in two of the three seeds (B within 0.45 m)")
+@pytest.mark.xfail(strict=True, reason="open: pipe A (5 degrees to the track, 60 degrees from nadir) lies 0.55-0.59 "
+                                       "m RMS from its crossings in two of the three seeds, its detections 0.3 m "
+                                       "short in range (B within 0.25 m)")
 def test_every_pipe_is_within_half_a_metre_of_its_crossings(surveys):
     """The validation target on position: every pipe, every seed, within 0.5 m RMS of its crossings."""
     position = np.array([[rows[n]["position_rms_m"] for n in PIPES] for rows, _ in surveys])
