@@ -180,11 +180,8 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
         After :meth:`~SurveyNavigation.finish`.
     options : LineOptions
     carried : list of Track, optional
-        Tracks an earlier search of the same detections kept
-        (:attr:`SurveyLines.tracks`), over another seabed: candidates beside
-        those found here, judged after them and kept only where no line
-        found here lies along them (a line that search found is not lost
-        where this one splits it).
+        Tracks an earlier search of the same detections kept over another seabed (:attr:`SurveyLines.tracks`):
+        judged after those found here, kept only where no line kept here lies along them.
 
     Returns
     -------
@@ -208,13 +205,9 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
                     "%.1f m apart; their lengths and headings are not reported", options.nominal_spacing_m)
     frame = _frame(det, order, sb, centre_yz, pings, s_ping)
     rank = line_ranker(frame, options)
-    found = find_tracks(frame, options, rank=rank)
-    tracks = found + _not_found_again(carried or [], found)
     level = None if det.intensity_db is None else np.asarray(det.intensity_db, dtype=np.float64)[order]
     probe = None if det.edge_probe is None else (lambda members: det.edge_probe(order[members]))
-    described = [(tr, *_describe(frame, tr, options, rank, (sb, centre_yz, level, probe), nav, scaled))
-                 for tr in tracks]
-    late = sum(d[1]["score"] >= options.min_score for d in described[len(found):])  # the carried ones, last
+    described, late = _candidates(frame, options, rank, carried or [], (sb, centre_yz, level, probe), (nav, scaled))
     kept = without_duplicates([d for d in described if d[1]["score"] >= options.min_score], frame, options,
                               (rank, level), (sb, centre_yz, scaled),
                               lambda line, crossing: _moved_to_crossing(frame, line, crossing, (sb, nav, scaled), options),
@@ -224,15 +217,22 @@ def survey_lines(det: LineDetections, seabed: np.ndarray, centre_yz: np.ndarray,
     kept = joined_end_to_end(kept, frame, options,
                              lambda first, second: _joined(frame, first, second, (sb, centre_yz, nav, scaled), options))
     rows, paths, geo, ping_paths, labels = _numbered(kept, order, n)
-    return SurveyLines(rows, paths, labels, len(tracks), geo if nav.all_nav else None, options.min_score, ping_paths,
+    return SurveyLines(rows, paths, labels, len(described), geo if nav.all_nav else None, options.min_score, ping_paths,
                        score_path=lambda p, y, burial=None: path_score(frame, p, y, options, rank.size, burial),
                        tracks=unjoined)
 
 
-def _not_found_again(carried: list, found: list) -> list:
-    """The ``carried`` tracks whose detections no track of ``found`` holds exactly."""
+def _candidates(frame: TrackFrame, options: LineOptions, rank, carried: list, pings_info: tuple,
+                where: tuple) -> tuple[list, int]:
+    """The tracks the search finds in ``frame`` and the ``carried`` ones whose detections none of those holds
+    exactly, each described (:func:`_describe`, ``pings_info`` as there, ``where``: the navigation and whether
+    the along-track distance is known), and how many of those scoring at least ``min_score`` were carried
+    (they come last)."""
+    found = find_tracks(frame, options, rank=rank)
     held = {tr.members.tobytes() for tr in found}
-    return [tr for tr in carried if tr.members.tobytes() not in held]
+    tracks = found + [tr for tr in carried if tr.members.tobytes() not in held]
+    described = [(tr, *_describe(frame, tr, options, rank, pings_info, *where)) for tr in tracks]
+    return described, sum(d[1]["score"] >= options.min_score for d in described[len(found):])
 
 
 def _numbered(kept: list, order: np.ndarray, n: int) -> tuple:
