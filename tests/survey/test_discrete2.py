@@ -12,13 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from clbeam.cli.main import build_parser
-from clbeam.cli.survey import options_from_survey_args
-from clbeam.evaluation.line_truth import score_survey
-from clbeam.io.pingwrite import write_ping_file
-from clbeam.sim import load_scene, simulate
-from clbeam.survey import run_survey, scan_inputs
+from survey_common import scored_surveys
 
 SEEDS = (10, 11, 12)
 PIPES = ("A", "B")
@@ -32,18 +26,8 @@ pytestmark = pytest.mark.slow  # three 24-ping discrete surveys: about 1.5 min o
 @pytest.fixture(scope="module")
 def surveys(tmp_path_factory):
     """Per seed: the truth's rows per pipeline and the false-line summary."""
-    work = tmp_path_factory.mktemp("discrete2")
-    out = []
-    for seed in SEEDS:
-        nc = work / f"discrete2_{seed}.nc"
-        write_ping_file(simulate(load_scene("discrete2"), seed=seed), nc)
-        args = build_parser().parse_args(["survey", str(nc), "-o", str(work / f"discrete2_{seed}.zarr"),
-                                          "--max-range", "700", "--seabed-band", "5", "40", "--quiet"])
-        scan = scan_inputs(args.inputs)
-        res = run_survey(scan, args.output, options_from_survey_args(args, scan))
-        rows, summary = score_survey(res.products, [nc])
-        out.append(({r["target"]: r for r in rows}, summary))
-    return out
+    return scored_surveys("discrete2", SEEDS, tmp_path_factory.mktemp("discrete2"),
+                          ["--max-range", "700", "--seabed-band", "5", "40"])
 
 
 def test_each_pipe_is_one_line_with_no_parallel_line_ghost_or_false_line(surveys):
@@ -71,7 +55,7 @@ def test_burials_meet_the_validation_target_with_the_smears_deepening_taken_off(
 
 @pytest.mark.xfail(strict=True, reason="open: pipe A (5 degrees to the track, 60 degrees from nadir) lies 0.55-0.59 "
                                        "m RMS from its crossings in two of the three seeds, its detections 0.3 m "
-                                       "short in range (B within 0.25 m)")
+                                       "short in range (B within 0.45 m)")
 def test_every_pipe_is_within_half_a_metre_of_its_crossings(surveys):
     """The validation target on position: every pipe, every seed, within 0.5 m RMS of its crossings."""
     position = np.array([[rows[n]["position_rms_m"] for n in PIPES] for rows, _ in surveys])

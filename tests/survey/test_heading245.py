@@ -11,13 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from clbeam.cli.main import build_parser
-from clbeam.cli.survey import options_from_survey_args
-from clbeam.evaluation.line_truth import score_survey
-from clbeam.io.pingwrite import write_ping_file
-from clbeam.sim import load_scene, simulate
-from clbeam.survey import run_survey, scan_inputs
+from survey_common import scored_surveys
 
 SEEDS = (0, 1, 2)
 #: the lines' validation targets (bench/lines_eval.py)
@@ -30,18 +24,8 @@ pytestmark = pytest.mark.slow  # three 40-ping surveys: about 2.5 min on two cor
 @pytest.fixture(scope="module")
 def surveys(tmp_path_factory):
     """Per seed: the truth's rows per pipeline and the false-line summary."""
-    work = tmp_path_factory.mktemp("heading245")
-    out = []
-    for seed in SEEDS:
-        nc = work / f"heading245_{seed}.nc"
-        write_ping_file(simulate(load_scene("heading245"), seed=seed), nc)
-        args = build_parser().parse_args(["survey", str(nc), "-o", str(work / f"heading245_{seed}.zarr"),
-                                          "--max-range", "650", "--seabed-band", "5", "40", "--quiet"])
-        scan = scan_inputs(args.inputs)
-        res = run_survey(scan, args.output, options_from_survey_args(args, scan))
-        rows, summary = score_survey(res.products, [nc])
-        out.append(({r["target"]: r for r in rows}, summary))
-    return out
+    return scored_surveys("heading245", SEEDS, tmp_path_factory.mktemp("heading245"),
+                          ["--max-range", "650", "--seabed-band", "5", "40"])
 
 
 def test_every_pipeline_is_one_line_and_no_line_is_false(surveys):
